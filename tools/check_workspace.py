@@ -36,6 +36,7 @@ def source_packages() -> list[str]:
 def echo_main() -> int:
     """Child process: answer each ping with a pong carrying the same payload, then exit."""
     import rclpy
+
     from c4d_interfaces.msg import GeoPoint
 
     rclpy.init()
@@ -79,6 +80,7 @@ def main() -> int:
     os.environ["ROS_DOMAIN_ID"] = str(lease.domain_id)
 
     import rclpy
+
     from c4d_interfaces.msg import GeoPoint
 
     env = dict(os.environ)

@@ -1,0 +1,157 @@
+"""pytest plugin shared by every c4d test: private DDS domains, process groups, leak check.
+
+Why: whole-graph tests start real processes talking real DDS. Three rules make that safe on a
+shared machine, and this plugin enforces them instead of trusting each test:
+- discovery stays on loopback (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, forced here);
+- each test module gets its own ROS_DOMAIN_ID, locked machine-wide (see tools/ros_domain.py);
+- no test leaves a process behind: every child carries a per-run token in its environment,
+  and at session end any process still holding it is killed and the run fails.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tools"))
+
+import ros_domain  # noqa: E402  (lives in tools/, added to sys.path above)
+
+RUN_TOKEN = f"c4d-test-{uuid.uuid4().hex[:12]}"
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ["C4D_TEST_RUN"] = RUN_TOKEN
+
+
+class ProcessGroup:
+    """Processes started by one test or fixture; stop() ends them all (SIGINT, then SIGKILL)."""
+
+    def __init__(self, log_dir: Path, env: dict[str, str]) -> None:
+        self.log_dir = log_dir
+        self.env = env
+        self.procs: list[tuple[subprocess.Popen, Path]] = []
+
+    def spawn(self, name: str, argv: list[str], **env_overrides: str) -> subprocess.Popen:
+        log = self.log_dir / f"{name}.log"
+        env = {**self.env, **env_overrides}
+        with open(log, "wb") as out:
+            proc = subprocess.Popen(
+                argv, stdout=out, stderr=subprocess.STDOUT, env=env, start_new_session=True
+            )
+        self.procs.append((proc, log))
+        return proc
+
+    def log_of(self, proc: subprocess.Popen) -> str:
+        for p, log in self.procs:
+            if p is proc:
+                return log.read_text(errors="replace")
+        raise KeyError(proc)
+
+    def stop(self, timeout: float = 10.0) -> dict[int, int]:
+        """Interrupt every process group, wait, kill what is left; return pid -> exit code."""
+        for proc, _ in self.procs:
+            if proc.poll() is None:
+                _signal_group(proc.pid, signal.SIGINT)
+        deadline = time.monotonic() + timeout
+        codes: dict[int, int] = {}
+        for proc, _ in self.procs:
+            try:
+                codes[proc.pid] = proc.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                _signal_group(proc.pid, signal.SIGKILL)
+                codes[proc.pid] = proc.wait()
+            _signal_group(proc.pid, signal.SIGKILL)  # stray grandchildren of the group
+        return codes
+
+
+def _signal_group(pgid: int, sig: int) -> None:
+    try:
+        os.killpg(pgid, sig)
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+def leftover_processes(token: str) -> list[tuple[int, str]]:
+    """(pid, command line) of live processes, other than this one, carrying `token`."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            environ = (entry / "environ").read_bytes()
+            if f"C4D_TEST_RUN={token}".encode() not in environ.split(b"\0"):
+                continue
+            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
+            if state == "Z":
+                continue
+            cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except (FileNotFoundError, ProcessLookupError, PermissionError):
+            continue
+        found.append((int(entry.name), cmd.strip()))
+    return found
+
+
+@pytest.fixture(scope="module")
+def ros_domain_id() -> Iterator[int]:
+    """A ROS_DOMAIN_ID private to this test module (machine-wide lock)."""
+    lease = ros_domain.acquire()
+    try:
+        yield lease.domain_id
+    finally:
+        lease.release()
+
+
+@pytest.fixture(scope="module")
+def ros_env(ros_domain_id: int) -> dict[str, str]:
+    """Environment for child processes of this module: its domain, loopback discovery."""
+    return {
+        **os.environ,
+        "ROS_DOMAIN_ID": str(ros_domain_id),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "PYTHONUNBUFFERED": "1",
+    }
+
+
+@pytest.fixture(scope="module")
+def module_processes(ros_env: dict[str, str], tmp_path_factory) -> Iterator[ProcessGroup]:
+    """A ProcessGroup living as long as the test module."""
+    group = ProcessGroup(tmp_path_factory.mktemp("procs"), ros_env)
+    try:
+        yield group
+    finally:
+        group.stop()
+
+
+@pytest.fixture
+def processes(ros_env: dict[str, str], tmp_path: Path) -> Iterator[ProcessGroup]:
+    """A ProcessGroup living as long as one test."""
+    group = ProcessGroup(tmp_path, ros_env)
+    try:
+        yield group
+    finally:
+        group.stop()
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    leftovers = leftover_processes(RUN_TOKEN)
+    if not leftovers:
+        return
+    for pid, _ in leftovers:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    lines = "\n".join(f"  pid {pid}: {cmd}" for pid, cmd in leftovers)
+    session.config.pluginmanager.get_plugin("terminalreporter").write_line(
+        f"c4d_testing: tests left {len(leftovers)} process(es) running (killed now):\n{lines}",
+        red=True,
+    )
+    session.exitstatus = pytest.ExitCode.TESTS_FAILED
