@@ -129,7 +129,7 @@ def plot(rows: Sequence[Row], path: Path) -> None:
         ax.set_xlabel("total utilisation U (%)")
         ax.set_ylabel("schedulable sets under FIFO (%)")
         ax.grid(alpha=0.3)
-        ax.legend()
+        ax.legend(loc="lower left", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -1,9 +1,11 @@
 """Random task sets as in the thesis (§3.3.1.1): Dirichlet-Rescale utilisations, GM01 periods.
 
-Utilisations: n values summing to U, uniformly distributed on the simplex. With the thesis'
-bounds (0 ≤ u_i ≤ 1, U ≤ 1) no bound can bind, and Dirichlet-Rescale [GBD20] then returns
-exactly a flat-Dirichlet sample scaled by U, which is what `utilisations` draws (vectorised);
-with a binding per-task cap (u_max < U) it calls the `drs` library itself.
+Utilisations: n values summing to U, uniformly distributed on the (capped) simplex — the
+distribution Dirichlet-Rescale [GBD20] targets. With the thesis' bounds (0 ≤ u_i ≤ 1, U ≤ 1)
+no bound can bind and DRS returns exactly a flat-Dirichlet sample scaled by U, which is what
+`utilisations` draws (vectorised). With a binding per-task cap (u_max < U) it keeps the flat
+Dirichlet samples that respect the cap (rejection), which is exactly uniform on the capped
+simplex; the `drs` package itself is deprecated by its author for non-uniformity.
 
 Periods (GM01, Goossens & Macq 2001): period = Π p^e_p with each exponent e_p drawn from a
 per-prime distribution — a finite set of periods with a bounded hyperperiod. The distribution
@@ -115,12 +117,17 @@ def utilisations(
         raise ValueError(f"total utilisation {total} is not reachable by {n} tasks")
     if u_max is None or u_max >= total:
         return rng.dirichlet(np.ones(n), size=size) * total
-    import random
-
-    from drs import drs  # Dirichlet-Rescale for binding caps
-
-    random.seed(int(rng.integers(2**63)))
-    return np.array([drs(n, total, [u_max] * n, [0.0] * n) for _ in range(size)])
+    kept: list[np.ndarray] = []
+    have, draws = 0, 0
+    while have < size:
+        if draws > 1000 * max(size, 1000):
+            raise ValueError(f"cap u_max = {u_max} with U = {total} and n = {n} is too tight to sample")
+        batch = rng.dirichlet(np.ones(n), size=max(size, 1000)) * total
+        ok = batch[(batch <= u_max).all(axis=1)]
+        kept.append(ok)
+        have += len(ok)
+        draws += len(batch)
+    return np.concatenate(kept)[:size]
 
 
 def generate_tasksets(
@@ -150,6 +157,7 @@ def generate_tasksets(
             ok &= np.gcd.reduce(periods, axis=1) >= wcets.max(axis=1)
         draws += batch
         for row in np.nonzero(ok)[0][: count - len(sets)]:
-            tasks = tuple(Task(f"t{i + 1}", int(t), int(c)) for i, (t, c) in enumerate(zip(periods[row], wcets[row], strict=True)))
+            pairs = zip(periods[row].tolist(), wcets[row].tolist(), strict=True)
+            tasks = tuple(Task(f"t{i + 1}", t, c) for i, (t, c) in enumerate(pairs))
             sets.append(TaskSet(tasks, unit="ms"))
     return sets
