@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from .arith import gcd_all, prime_factors
 from .model import Assignment, TaskSet
@@ -45,9 +46,9 @@ ORDER_VARIANTS: dict[str, Callable[[int, Sequence[int], Sequence[int]], tuple]] 
 }
 
 
-@dataclass(frozen=True)
-class Placement:
-    """Where GCD+ put one task (columns of thesis Table 3.1)."""
+class Placement(NamedTuple):
+    """Where GCD+ put one task (columns of thesis Table 3.1); a NamedTuple because GCD+ builds
+    one per task on its hot path."""
 
     section: int  # p (1 for T_S = 1)
     cycle: int  # O_C (unwrapped for chain successors)
@@ -90,13 +91,17 @@ def _conflict_vector(
     the latest end time (O_I + C) of section members released in a cycle congruent to k."""
     if not members:
         return [0]
-    gs = [math.gcd(subperiod, ts[j]) for j in members]
-    period = 1
-    for g in gs:
-        period = math.lcm(period, g)
+    gcd = math.gcd
+    gs = [gcd(subperiod, ts[j]) for j in members]
+    period = math.lcm(*gs)
     v = [0] * period
     for j, g in zip(members, gs, strict=True):
         x = end[j]
+        if g == period:  # one slot per pattern period: no inner loop
+            k = cycle[j] % g
+            if v[k] < x:
+                v[k] = x
+            continue
         for k in range(cycle[j] % g, period, g):
             if v[k] < x:
                 v[k] = x
@@ -139,8 +144,15 @@ class _Builder:
         self.delta[p] = max(self.delta.get(p, 0), self.end[i])
 
     def place_free(self, i: int) -> None:
+        primes = self.sections_for(i)
+        if len(primes) == 1:  # the common case: no section choice to make
+            p = primes[0]
+            v = _conflict_vector(self.ts[i], self.members.get(p, ()), self.ts, self.cycle, self.end)
+            value = min(v)
+            self.commit(i, p, v.index(value), value)
+            return
         best = None
-        for p in self.sections_for(i):
+        for p in primes:
             increase, value, k = self.best_in_section(i, p)
             key = (increase, value, p)
             if best is None or key < best[0]:
