@@ -1,0 +1,171 @@
+"""Single-threaded cyclic executive: absolute deadlines, input / latch / tasks / output phases.
+
+What: tick k starts at t0 + k·tick on a monotonic clock (no drift: deadlines are computed,
+never accumulated). Each tick runs (1) the input phase (e.g. drain rclpy subscriptions into a
+blackboard), (2) the latch hook (flight-mode requests take effect here, never mid-chain),
+(3) the tasks due at k in schedule order, (4) the output phase, then accounts the tick and
+sleeps to the next deadline. After an overrun there is no burst catch-up: ticks whose
+deadline already passed are skipped and counted, and the tick index keeps following time so
+phases stay aligned. Why: this is the Paparazzi / ArduPilot / thesis main loop, and the only
+way to get deterministic, low-jitter control inside a ROS 2 process (PLATFORM.md: rclpy
+timers jitter by hundreds of µs and drift).
+The clock is injectable: tests use FakeClock to check order, phases and accounting exactly.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping
+from typing import Protocol
+
+from .profiler import ExecutorReport, Profiler
+from .tickschedule import ScheduledTask, TickSchedule
+
+TaskFunction = Callable[[int], None]
+
+
+class Clock(Protocol):
+    def now_ns(self) -> int: ...
+    def sleep_until_ns(self, deadline_ns: int) -> None: ...
+    def cpu_ns(self) -> int: ...
+
+
+class MonotonicClock:
+    """time.monotonic_ns with a hybrid wait: sleep until `spin_ns` before the deadline, then spin."""
+
+    def __init__(self, spin_ns: int = 200_000) -> None:
+        self.spin_ns = spin_ns
+
+    def now_ns(self) -> int:
+        return time.monotonic_ns()
+
+    def cpu_ns(self) -> int:
+        return time.process_time_ns()
+
+    def sleep_until_ns(self, deadline_ns: int) -> None:
+        remaining = deadline_ns - time.monotonic_ns()
+        if remaining > self.spin_ns:
+            time.sleep((remaining - self.spin_ns) / 1e9)
+        while time.monotonic_ns() < deadline_ns:
+            pass
+
+
+class FakeClock:
+    """Deterministic clock for tests: time moves only by sleep_until_ns and advance()."""
+
+    def __init__(self, start_ns: int = 0) -> None:
+        self.t = start_ns
+
+    def now_ns(self) -> int:
+        return self.t
+
+    def cpu_ns(self) -> int:
+        return self.t
+
+    def sleep_until_ns(self, deadline_ns: int) -> None:
+        self.t = max(self.t, deadline_ns)
+
+    def advance(self, ns: int) -> None:
+        self.t += ns
+
+
+class CyclicExecutive:
+    """Runs a TickSchedule's tasks with absolute deadlines and a profiler (see module docstring)."""
+
+    def __init__(
+        self,
+        schedule: TickSchedule,
+        tasks: Mapping[str, TaskFunction],
+        clock: Clock | None = None,
+        name: str = "executive",
+        input_phase: Callable[[int], None] | None = None,
+        latch: Callable[[int], None] | None = None,
+        output_phase: Callable[[int], None] | None = None,
+        report_period_s: float = 1.0,
+        on_report: Callable[[ExecutorReport], None] | None = None,
+    ) -> None:
+        missing = [t.name for t in schedule.tasks if t.name not in tasks]
+        if missing:
+            raise ValueError(f"no function for scheduled task(s): {', '.join(missing)}")
+        self.schedule = schedule
+        self.functions = dict(tasks)
+        self.clock = clock or MonotonicClock()
+        self.tick_ns = schedule.tick_us * 1000
+        self.input_phase, self.latch, self.output_phase = input_phase, latch, output_phase
+        self.report_period_ns = int(report_period_s * 1e9)
+        self.on_report = on_report
+        self.profiler = Profiler(name, self.tick_ns, [(t.name, t.group, t.divider, t.budget_us) for t in schedule.tasks])
+        self._plan = self._precompute()
+        self.tick = 0
+        self.t0_ns: int | None = None
+        self._next_report_ns = 0
+        self._stop = False
+
+    def _precompute(self) -> list[tuple[ScheduledTask, ...]] | None:
+        hyper = math.lcm(*(t.divider for t in self.schedule.tasks))
+        if hyper > 100_000:
+            return None
+        return [tuple(self.schedule.due(k)) for k in range(hyper)]
+
+    def due(self, tick: int) -> tuple[ScheduledTask, ...]:
+        if self._plan is not None:
+            return self._plan[tick % len(self._plan)]
+        return tuple(self.schedule.due(tick))
+
+    def stop(self) -> None:
+        """Ask run() to return after the current tick (safe from a task or a signal handler)."""
+        self._stop = True
+
+    def start(self, t0_ns: int | None = None) -> None:
+        clock = self.clock
+        self.t0_ns = t0_ns if t0_ns is not None else clock.now_ns() + self.tick_ns
+        self.tick = 0
+        self._next_report_ns = self.t0_ns + self.report_period_ns
+        self.profiler.start_window(self.t0_ns, clock.cpu_ns())
+
+    def step(self) -> None:
+        """Wait for the current tick's deadline and run it (start() first)."""
+        if self.t0_ns is None:
+            self.start()
+        assert self.t0_ns is not None
+        clock, k = self.clock, self.tick
+        deadline = self.t0_ns + k * self.tick_ns
+        clock.sleep_until_ns(deadline)
+        start = clock.now_ns()
+        if self.input_phase:
+            self.input_phase(k)
+        if self.latch:
+            self.latch(k)
+        functions = self.functions
+        for task in self.due(k):
+            t_start = clock.now_ns()
+            functions[task.name](k)
+            self.profiler.task_ran(task.name, t_start, clock.now_ns())
+        if self.output_phase:
+            self.output_phase(k)
+        end = clock.now_ns()
+        next_deadline = deadline + self.tick_ns
+        overrun = end > next_deadline
+        next_tick = k + 1
+        if overrun:  # no burst catch-up: resume at the first deadline still ahead
+            next_tick = (end - self.t0_ns) // self.tick_ns + 1
+        self.profiler.tick_done(start - deadline, end - start, overrun, next_tick - k - 1)
+        self.tick = next_tick
+        boundary = self.t0_ns + next_tick * self.tick_ns  # windows end on tick deadlines: no drift
+        if boundary >= self._next_report_ns:
+            report = self.profiler.report(boundary, clock.cpu_ns())
+            self._next_report_ns = boundary + self.report_period_ns
+            if self.on_report:
+                self.on_report(report)
+
+    def run(self, max_ticks: int | None = None, should_stop: Callable[[], bool] | None = None) -> None:
+        """Run ticks until stop(), should_stop() is true, or max_ticks ticks have elapsed."""
+        if self.t0_ns is None:
+            self.start()
+        end_tick = None if max_ticks is None else self.tick + max_ticks
+        self._stop = False
+        while not self._stop and (end_tick is None or self.tick < end_tick):
+            if should_stop is not None and should_stop():
+                break
+            self.step()
