@@ -116,7 +116,10 @@ say "colcon build (log: log/setup/colcon.log)"
 if ! colcon --log-base "$ROOT/log" build --symlink-install --metas "$ROOT/colcon.meta" --event-handlers console_direct- console_stderr- \
         > "$LOGDIR/colcon.log" 2>&1; then
     failed=$(sed -n 's/^Failed *<<< \([^ ]*\).*/\1/p' "$LOGDIR/colcon.log" | tr '\n' ' ')
-    die "colcon build failed for: ${failed:-unknown package} — see log/setup/colcon.log and log/latest_build/<pkg>/"
+    if [ -z "$failed" ]; then
+        die "colcon build failed: $(grep -m1 -A2 'ERROR' "$LOGDIR/colcon.log" | tr '\n' ' ' | cut -c1-200)"
+    fi
+    die "colcon build failed for: $failed — see log/setup/colcon.log and log/latest_build/<pkg>/"
 fi
 [ -f "$ROOT/install/setup.bash" ] || die "colcon build produced no install/setup.bash"
 packages=$(sed -n 's/^Finished *<<< \([^ ]*\).*/\1/p' "$LOGDIR/colcon.log" | sort | tr '\n' ' ')

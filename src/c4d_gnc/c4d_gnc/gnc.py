@@ -1,0 +1,376 @@
+"""The GNC core logic: modes, latched requests, guidance profiles and the cascade as tasks.
+
+ROS-free. The core node (or a test harness) fills the blackboard (`inputs`) during the input
+phase, calls `latch()` once per tick, runs the task functions of TASKS at their schedule
+rates, and reads `outputs`. Requests (arm, disarm, set mode, take-off, land, hold, kill) are
+validated when they arrive and applied at the next `latch()` — a mode change never happens in
+the middle of a control chain.
+
+Modes (c4d_interfaces/VehicleStatus numbering): RATE and ATTITUDE follow external setpoints of
+that level; POSITION holds the position and heading captured on entry; AUTO runs a navigation
+state — TAKEOFF (climb at the airframe's take-off speed to the target, then HOLD), HOLD, LAND
+(descend at the landing speed, detect touchdown, disarm), MISSION/GOTO (follow external
+guidance setpoints, holding if they go stale); KILL stops the motors at once.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+from . import quat
+from .airframe import GRAVITY, Airframe
+from .control.mixer import Mixer, MixResult
+from .control.rotation import RotationController
+from .control.translation import TranslationController
+
+NAN = float("nan")
+Vec = tuple[float, float, float]
+
+
+class Mode(IntEnum):
+    UNKNOWN = 0
+    RATE = 1
+    ATTITUDE = 2
+    POSITION = 3
+    AUTO = 4
+    KILL = 5
+
+
+class Nav(IntEnum):
+    NONE = 0
+    TAKEOFF = 1
+    MISSION = 2
+    HOLD = 3
+    GOTO = 4
+    RTL = 5
+    LAND = 6
+
+
+class Landed(IntEnum):
+    UNDEFINED = 0
+    ON_GROUND = 1
+    IN_AIR = 2
+    TAKEOFF = 3
+    LANDING = 4
+
+
+class Level(IntEnum):  # GuidanceSetpoint.LEVEL_*
+    POSITION = 1
+    VELOCITY = 2
+    ACCELERATION = 3
+    ATTITUDE = 4
+    RATE = 5
+
+
+class Command(IntEnum):  # VehicleCommand.CMD_* subset served by the core
+    ARM = 1
+    DISARM = 2
+    TAKEOFF = 3
+    LAND = 4
+    HOLD = 6
+    SET_MODE = 7
+
+
+@dataclass
+class StateSample:
+    """Navigation state as the core uses it (world ENU, body FLU)."""
+
+    stamp: float
+    position: Vec
+    velocity: Vec
+    orientation: quat.Quat
+    angular_velocity: Vec
+    valid_position: bool = True
+    valid_attitude: bool = True
+
+
+@dataclass
+class Setpoint:
+    """A guidance target (c4d_interfaces/GuidanceSetpoint); NaN = not set. For level POSITION
+    a NaN position component makes that axis velocity-controlled with velocity[k]."""
+
+    stamp: float
+    level: Level
+    position: Vec = (NAN, NAN, NAN)
+    velocity: Vec = (NAN, NAN, NAN)
+    acceleration: Vec = (NAN, NAN, NAN)
+    yaw: float = NAN
+    yaw_rate: float = NAN
+    orientation: quat.Quat = quat.IDENTITY
+    body_rate: Vec = (0.0, 0.0, 0.0)
+    thrust: float = NAN  # [0, 1] of the total thrust
+
+
+@dataclass
+class Inputs:
+    """Blackboard: the newest data of each input, written in the input phase only."""
+
+    now: float = 0.0
+    state: StateSample | None = None
+    gyro: Vec | None = None
+    gyro_stamp: float = -math.inf
+    setpoint: Setpoint | None = None
+
+
+@dataclass
+class Outputs:
+    commands: tuple[float, ...] = ()
+    armed: bool = False
+    mode: Mode = Mode.POSITION
+    nav: Nav = Nav.NONE
+    landed: Landed = Landed.ON_GROUND
+    input_stamp: float = 0.0  # sample time of the data the last command came from
+    mix: MixResult | None = None
+    events: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Request:
+    command: Command
+    mode: Mode = Mode.UNKNOWN
+    altitude: float = 0.0
+    force: bool = False
+
+
+STATE_TIMEOUT_S = 0.1
+GYRO_TIMEOUT_S = 0.02
+SETPOINT_TIMEOUT_S = 0.5
+LANDED_TIME_S = 1.0
+
+
+class GncCore:
+    TASKS = ("state_update", "guidance", "position_control", "attitude_control", "rate_control", "mixer")
+
+    def __init__(self, airframe: Airframe, tick_s: float, default_takeoff_altitude: float = 2.5) -> None:
+        self.af = airframe
+        self.tick_s = tick_s
+        self.default_takeoff_altitude = default_takeoff_altitude
+        self.inputs = Inputs()
+        self.out = Outputs(commands=tuple(0.0 for _ in airframe.motors))
+        self.translation = TranslationController(airframe)
+        self.rotation = RotationController(airframe)
+        self.mixer = Mixer(airframe)
+        self.pending: list[Request] = []
+        self.state: StateSample | None = None
+        self.setpoint: Setpoint | None = None
+        self.hold: Vec = (0.0, 0.0, 0.0)
+        self.hold_yaw = 0.0
+        self.takeoff_target = 0.0
+        self.ramp_z = 0.0
+        self.thrust = 0.0
+        self.attitude_target = quat.IDENTITY
+        self.rate_target: Vec = (0.0, 0.0, 0.0)
+        self.torque: Vec = (0.0, 0.0, 0.0)
+        self.yaw_rate_ff = 0.0
+        self.landed_timer = 0.0
+        self.active: Setpoint | None = None
+
+    # ----------------------------------------------------------------- requests & latch
+    def inputs_fresh(self) -> str:
+        """Empty string when state and gyro are fresh and valid, else the reason."""
+        i = self.inputs
+        if i.state is None or i.now - i.state.stamp > STATE_TIMEOUT_S:
+            return "navigation state is stale"
+        if i.gyro is None or i.now - i.gyro_stamp > GYRO_TIMEOUT_S:
+            return "gyro (IMU) is stale"
+        if not i.state.valid_attitude:
+            return "attitude estimate is not valid"
+        return ""
+
+    def request(self, req: Request) -> tuple[bool, str]:
+        """Validate now, apply at the next tick boundary. Returns (accepted, reason)."""
+        armed, landed = self.out.armed, self.out.landed
+        if req.command in (Command.ARM, Command.TAKEOFF):
+            reason = self.inputs_fresh()
+            if reason and not (req.force and req.command == Command.ARM):
+                return False, f"refusing to arm: {reason}"
+            if req.command == Command.TAKEOFF and self.inputs.state and not self.inputs.state.valid_position:
+                return False, "take-off needs a valid position estimate"
+        if req.command == Command.DISARM and armed and landed not in (Landed.ON_GROUND,) and not req.force:
+            return False, "refusing to disarm in the air (use force)"
+        if req.command == Command.SET_MODE and req.mode not in (Mode.RATE, Mode.ATTITUDE, Mode.POSITION, Mode.AUTO, Mode.KILL):
+            return False, f"unknown mode {int(req.mode)}"
+        if req.command in (Command.LAND, Command.HOLD) and not armed:
+            return False, "not armed"
+        self.pending.append(req)
+        return True, "accepted: applies at the next tick"
+
+    def latch(self) -> None:
+        """Apply pending requests, in arrival order, at this tick boundary."""
+        pending, self.pending = self.pending, []
+        for req in pending:
+            self._apply(req)
+
+    def _capture_hold(self) -> None:
+        s = self.state or self.inputs.state
+        if s is not None:
+            self.hold = s.position
+            self.hold_yaw = quat.yaw_of(s.orientation)
+
+    def _apply(self, req: Request) -> None:
+        out = self.out
+        if req.command == Command.ARM and not out.armed:
+            self._reset_controllers()
+            self._capture_hold()
+            out.armed, out.landed = True, Landed.ON_GROUND
+            out.events.append("armed")
+        elif req.command == Command.DISARM and out.armed:
+            out.armed, out.nav = False, Nav.NONE
+            out.events.append("disarmed")
+        elif req.command == Command.SET_MODE:
+            if req.mode == Mode.KILL:
+                out.armed = False
+                out.events.append("kill")
+            if req.mode in (Mode.POSITION, Mode.AUTO):
+                self._capture_hold()
+            out.mode = req.mode
+            out.nav = Nav.HOLD if req.mode == Mode.AUTO and out.armed else Nav.NONE
+        elif req.command == Command.TAKEOFF:
+            if not out.armed:
+                self._reset_controllers()
+                out.armed = True
+                out.events.append("armed")
+            self._capture_hold()
+            s = self.state or self.inputs.state
+            # altitude is above home (z = 0 of the local frame), not above a noisy ground sample
+            self.takeoff_target = req.altitude if req.altitude > 0 else self.default_takeoff_altitude
+            self.ramp_z = s.position[2] if s else 0.0
+            out.mode, out.nav, out.landed = Mode.AUTO, Nav.TAKEOFF, Landed.TAKEOFF
+        elif req.command == Command.LAND:
+            self._capture_hold()
+            out.mode, out.nav, out.landed = Mode.AUTO, Nav.LAND, Landed.LANDING
+            self.landed_timer = 0.0
+        elif req.command == Command.HOLD:
+            self._capture_hold()
+            out.mode, out.nav = Mode.AUTO, Nav.HOLD
+
+    def _reset_controllers(self) -> None:
+        self.translation.reset()
+        self.rotation.reset()
+
+    # ----------------------------------------------------------------- tasks
+    def state_update(self, dt: float) -> None:
+        """Estimation group: take the blackboard's state for this tick (read once, LET-like)."""
+        self.state = self.inputs.state
+        self.setpoint = self.inputs.setpoint
+
+    def guidance(self, dt: float) -> None:
+        """Guidance group: turn the mode / navigation state into the cascade's setpoint."""
+        out, s = self.out, self.state
+        if s is None:
+            return
+        now = self.inputs.now
+        mode = out.mode
+        external = self.setpoint if self.setpoint and now - self.setpoint.stamp <= SETPOINT_TIMEOUT_S else None
+        if mode in (Mode.RATE, Mode.ATTITUDE):
+            level = Level.RATE if mode == Mode.RATE else Level.ATTITUDE
+            if external is not None and external.level == level:
+                self.active = external
+            else:  # stale pilot input: level attitude, sink gently
+                self.active = Setpoint(now, Level.ATTITUDE, orientation=quat.from_euler(0, 0, quat.yaw_of(s.orientation)),
+                                       thrust=0.9 * self.af.hover_command / self.af.max_thrust_ratio)
+            return
+        if mode == Mode.AUTO and out.nav == Nav.TAKEOFF:
+            self.ramp_z = min(self.takeoff_target, self.ramp_z + self.af.takeoff_speed * dt)
+            climbing = self.ramp_z < self.takeoff_target
+            self.active = Setpoint(now, Level.POSITION, (self.hold[0], self.hold[1], self.ramp_z),
+                                   (0.0, 0.0, self.af.takeoff_speed if climbing else 0.0), yaw=self.hold_yaw)
+            if s.position[2] > 0.3:
+                out.landed = Landed.IN_AIR if not climbing else Landed.TAKEOFF
+            if not climbing and abs(s.position[2] - self.takeoff_target) < 0.15:
+                self.hold = (self.hold[0], self.hold[1], self.takeoff_target)
+                out.nav, out.landed = Nav.HOLD, Landed.IN_AIR
+                out.events.append("takeoff complete")
+            return
+        if mode == Mode.AUTO and out.nav == Nav.LAND:
+            self.active = Setpoint(now, Level.POSITION, (self.hold[0], self.hold[1], NAN),
+                                   (0.0, 0.0, -self.af.land_speed), yaw=self.hold_yaw)
+            self._detect_landing(s, dt)
+            return
+        if mode == Mode.AUTO and out.nav in (Nav.MISSION, Nav.GOTO, Nav.RTL) and external is not None:
+            self.active = external
+            return
+        self.active = Setpoint(now, Level.POSITION, self.hold, (0.0, 0.0, 0.0), yaw=self.hold_yaw)
+
+    def _detect_landing(self, s: StateSample, dt: float) -> None:
+        hover_thrust = self.af.mass * GRAVITY
+        still = abs(s.velocity[2]) < 0.15 and math.hypot(s.velocity[0], s.velocity[1]) < 0.3
+        if still and self.thrust < 0.7 * hover_thrust:
+            self.landed_timer += dt
+        else:
+            self.landed_timer = 0.0
+        if self.landed_timer >= LANDED_TIME_S:
+            out = self.out
+            out.armed, out.nav, out.landed = False, Nav.NONE, Landed.ON_GROUND
+            out.events.append("landed")
+            out.events.append("disarmed")
+
+    def position_control(self, dt: float) -> None:
+        """Control group (slow): position/velocity loops → thrust and attitude target."""
+        s, sp = self.state, self.active
+        if s is None or sp is None or sp.level in (Level.ATTITUDE, Level.RATE):
+            if sp is not None and sp.level in (Level.ATTITUDE, Level.RATE):
+                thrust = sp.thrust if math.isfinite(sp.thrust) else self.af.hover_command
+                self.thrust = thrust * self.af.total_max_thrust
+                if sp.level == Level.ATTITUDE:
+                    self.attitude_target = sp.orientation
+            return
+        velocity_ff = sp.velocity
+        if sp.level == Level.POSITION:
+            target = tuple(p if math.isfinite(p) else s.position[k] for k, p in enumerate(sp.position))
+            ff = tuple(v if math.isfinite(v) else 0.0 for v in velocity_ff)
+            v_sp = list(self.translation.velocity_setpoint(s.position, target, ff))
+            for k in range(3):  # NaN position axis: velocity control on that axis
+                if not math.isfinite(sp.position[k]):
+                    v_sp[k] = velocity_ff[k] if math.isfinite(velocity_ff[k]) else 0.0
+        elif sp.level == Level.VELOCITY:
+            v_sp = [v if math.isfinite(v) else 0.0 for v in velocity_ff]
+        else:
+            v_sp = None
+        if v_sp is not None:
+            accel = self.translation.acceleration_setpoint(s.velocity, tuple(v_sp), sp.acceleration, dt)
+        else:
+            accel = tuple(a if math.isfinite(a) else 0.0 for a in sp.acceleration)
+        yaw = sp.yaw if math.isfinite(sp.yaw) else self.hold_yaw
+        self.thrust, self.attitude_target = self.translation.thrust_and_attitude(accel, yaw, s.orientation)
+        self.yaw_rate_ff = sp.yaw_rate if math.isfinite(sp.yaw_rate) else 0.0
+
+    def attitude_control(self, dt: float) -> None:
+        s, sp = self.state, self.active
+        if s is None or sp is None:
+            return
+        if sp.level == Level.RATE:
+            self.rate_target = sp.body_rate
+            return
+        self.rate_target = self.rotation.rate_setpoint(s.orientation, self.attitude_target, self.yaw_rate_ff)
+
+    def rate_control(self, dt: float) -> None:
+        """Control group (fast): rate PID on the freshest gyro sample."""
+        gyro = self.inputs.gyro
+        if gyro is None:
+            return
+        self.torque = self.rotation.torque(gyro, self.rate_target, dt)
+
+    def mixer_task(self, dt: float) -> None:
+        out = self.out
+        if not out.armed or out.mode == Mode.KILL:
+            out.commands = self.mixer.zero()
+            out.mix = None
+            self._reset_controllers()
+            return
+        if out.landed == Landed.ON_GROUND and out.nav in (Nav.NONE, Nav.HOLD) and self.thrust <= 0:
+            out.commands = tuple(self.af.idle_command for _ in self.af.motors)
+            return
+        mix = self.mixer.mix(self.thrust, self.torque)
+        sat = mix.roll_pitch_scale < 1.0 or mix.thrust_achieved < self.thrust - 1e-6
+        self.rotation.saturated = (sat, sat, mix.yaw_scale < 1.0)
+        out.commands, out.mix = mix.commands, mix
+        if self.state is not None:
+            out.input_stamp = max(self.state.stamp, self.inputs.gyro_stamp)
+
+    def task_functions(self) -> dict[str, object]:
+        """name → f(dt) for the executive (the mixer's entry is `mixer`)."""
+        return {"state_update": self.state_update, "guidance": self.guidance, "position_control": self.position_control,
+                "attitude_control": self.attitude_control, "rate_control": self.rate_control, "mixer": self.mixer_task}
