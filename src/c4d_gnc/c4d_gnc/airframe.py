@@ -196,7 +196,7 @@ def default_airframe_path(name: str = "quad_x") -> Path:
         from ament_index_python.packages import get_package_share_directory
 
         candidates.insert(0, Path(get_package_share_directory("c4d_gnc")) / "config" / "airframes" / f"{name}.yaml")
-    except Exception:  # noqa: BLE001 - ament index absent (plain Python use): fall back to the source tree
+    except Exception:
         pass
     for candidate in candidates:
         if candidate.is_file():

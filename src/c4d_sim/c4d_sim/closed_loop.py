@@ -32,6 +32,7 @@ class Noise:
 
 
 NO_NOISE = Noise(0.0, 0.0, 0.0, 0.0)
+DEFAULT_NOISE = Noise()
 
 
 @dataclass
@@ -48,7 +49,7 @@ class ClosedLoop:
         self,
         airframe: Airframe,
         executive_config: Mapping,
-        noise: Noise = Noise(),
+        noise: Noise = DEFAULT_NOISE,
         seed: int = 0,
         plant_substeps: int = 2,
         phase_method: str | None = None,

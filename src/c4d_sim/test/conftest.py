@@ -1,8 +1,8 @@
 import pytest
 import yaml
-from c4d_gnc.airframe import default_airframe_path, load_airframe
 
-from c4d_sim.closed_loop import ClosedLoop, Noise
+from c4d_gnc.airframe import default_airframe_path, load_airframe
+from c4d_sim.closed_loop import DEFAULT_NOISE, ClosedLoop
 
 
 @pytest.fixture(scope="module")
@@ -13,7 +13,7 @@ def core_config():
 
 @pytest.fixture
 def make_loop(core_config):
-    def make(airframe="quad_x", noise=Noise(), seed=1, **kwargs):
+    def make(airframe="quad_x", noise=DEFAULT_NOISE, seed=1, **kwargs):
         return ClosedLoop(load_airframe(default_airframe_path(airframe)), kwargs.pop("config", core_config),
                           noise, seed=seed, **kwargs)
     return make

@@ -4,9 +4,9 @@ import math
 
 import numpy as np
 import pytest
+
 from c4d_gnc import quat
 from c4d_gnc.gnc import Command, Landed, Level, Mode, Nav, Request, Setpoint
-
 from c4d_sim.closed_loop import NO_NOISE
 
 

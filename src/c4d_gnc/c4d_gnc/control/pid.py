@@ -1,7 +1,7 @@
 """Three-axis PID with the protections a flight controller needs.
 
 - anti-windup: the integrator is clamped to ±i_limit and frozen on an axis while the
-  downstream stage reports saturation in the direction that would grow it;
+  downstream stage reports saturation, except to shrink it (unwind);
 - derivative on measurement (not on error), so setpoint steps do not kick the output;
 - optional conditional integration (only while |error| < integrate_below), so a large
   manoeuvre does not charge the integrator that then takes seconds to unwind;
@@ -46,7 +46,7 @@ class VectorPid:
         out = []
         for k in range(3):
             e = error[k]
-            if abs(e) < self.integrate_below and not (saturated[k] and e * self.integral[k] > 0):
+            if abs(e) < self.integrate_below and (not saturated[k] or e * self.integral[k] < 0):
                 limit = g.i_limit[k]
                 self.integral[k] = max(-limit, min(limit, self.integral[k] + g.i[k] * e * dt))
             out.append(g.p[k] * e + self.integral[k] - g.d[k] * derivative[k])
