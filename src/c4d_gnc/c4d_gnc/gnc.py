@@ -360,8 +360,10 @@ class GncCore:
             out.mix = None
             self._reset_controllers()
             return
-        if out.landed == Landed.ON_GROUND and out.nav in (Nav.NONE, Nav.HOLD) and self.thrust <= 0:
+        if out.landed == Landed.ON_GROUND and out.mode in (Mode.POSITION, Mode.AUTO) and out.nav != Nav.TAKEOFF:
+            # armed on the ground: spin at idle; only a take-off (or a pilot mode) lifts off
             out.commands = tuple(self.af.idle_command for _ in self.af.motors)
+            self._reset_controllers()
             return
         mix = self.mixer.mix(self.thrust, self.torque)
         sat = mix.roll_pitch_scale < 1.0 or mix.thrust_achieved < self.thrust - 1e-6
