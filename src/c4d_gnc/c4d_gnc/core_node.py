@@ -166,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
             functions[task.name] = lambda k, fn=fn, dt=dt: fn(dt)
     executive = CyclicExecutive(schedule, functions, MonotonicClock(), name=cfg.executive_name, input_phase=input_phase,
                                 latch=lambda k: core.latch(), output_phase=output_phase,
-                                report_period_s=cfg.report_period_s, on_report=on_report)
+                                report_period_s=cfg.report_period_s, on_report=on_report, manage_gc=True)
 
     def stop(signum, frame) -> None:
         executive.stop()

@@ -14,6 +14,7 @@ The clock is injectable: tests use FakeClock to check order, phases and accounti
 
 from __future__ import annotations
 
+import gc
 import math
 import time
 from collections.abc import Callable, Mapping
@@ -84,6 +85,7 @@ class CyclicExecutive:
         output_phase: Callable[[int], None] | None = None,
         report_period_s: float = 1.0,
         on_report: Callable[[ExecutorReport], None] | None = None,
+        manage_gc: bool = False,
     ) -> None:
         missing = [t.name for t in schedule.tasks if t.name not in tasks]
         if missing:
@@ -97,6 +99,7 @@ class CyclicExecutive:
         self.on_report = on_report
         self.profiler = Profiler(name, self.tick_ns, [(t.name, t.group, t.divider, t.budget_us) for t in schedule.tasks])
         self._plan = self._precompute()
+        self.manage_gc = manage_gc
         self.tick = 0
         self.t0_ns: int | None = None
         self._next_report_ns = 0
@@ -119,6 +122,12 @@ class CyclicExecutive:
 
     def start(self, t0_ns: int | None = None) -> None:
         clock = self.clock
+        if self.manage_gc:
+            # Python's cyclic GC can stop the world for milliseconds: freeze what exists now and
+            # collect only in the slack after a tick (see _collect_in_slack).
+            gc.collect()
+            gc.freeze()
+            gc.disable()
         self.t0_ns = t0_ns if t0_ns is not None else clock.now_ns() + self.tick_ns
         self.tick = 0
         self._next_report_ns = self.t0_ns + self.report_period_ns
@@ -152,12 +161,25 @@ class CyclicExecutive:
             next_tick = (end - self.t0_ns) // self.tick_ns + 1
         self.profiler.tick_done(start - deadline, end - start, overrun, next_tick - k - 1)
         self.tick = next_tick
+        if self.manage_gc:
+            self._collect_in_slack(self.t0_ns + next_tick * self.tick_ns - clock.now_ns())
         boundary = self.t0_ns + next_tick * self.tick_ns  # windows end on tick deadlines: no drift
         if boundary >= self._next_report_ns:
             report = self.profiler.report(boundary, clock.cpu_ns())
             self._next_report_ns = boundary + self.report_period_ns
             if self.on_report:
                 self.on_report(report)
+
+    def _collect_in_slack(self, slack_ns: int) -> None:
+        """Young-generation collection when enough garbage piled up and the tick left time."""
+        if slack_ns > self.tick_ns // 2 and gc.get_count()[0] > 2000:
+            gc.collect(0 if gc.get_count()[1] < 10 else 1)
+
+    def release_gc(self) -> None:
+        """Give the garbage collector back to Python (after run(), when manage_gc was set)."""
+        if self.manage_gc:
+            gc.enable()
+            gc.unfreeze()
 
     def run(self, max_ticks: int | None = None, should_stop: Callable[[], bool] | None = None) -> None:
         """Run ticks until stop(), should_stop() is true, or max_ticks ticks have elapsed."""
