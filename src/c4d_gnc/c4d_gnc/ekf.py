@@ -1,0 +1,223 @@
+"""Navigation filter: 15-state error-state EKF (position, velocity, attitude, gyro and accel bias).
+
+Nominal state in ENU / FLU: p, v, q (body → world), b_g, b_a. Prediction integrates each IMU
+sample (strapdown: a = R(f − b_a) + g); the error covariance follows δṗ = δv,
+δv̇ = −[R(f − b_a)]×δθ − R δb_a, δθ̇ = −R δb_g (attitude error in the world frame), biases as
+random walks. Updates: GNSS position (latency compensated with the current velocity), barometric
+altitude (offset learnt at home), magnetometer heading. Static alignment (roll and pitch from
+gravity, yaw from the magnetometer) starts the filter; home (the geodetic origin of the local
+frame) is the mean of the first GNSS fixes. Each sensor is optional: without GNSS the position is flagged
+invalid (and its covariance grows); without magnetometer the heading is flagged invalid.
+Why an error-state filter: the attitude error stays small and three-dimensional, so the
+filter is well conditioned with a unit quaternion as nominal attitude.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import quat
+from .geodesy import GeoOrigin, altitude_at_pressure
+
+GRAVITY = 9.80665
+Vec = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class EkfConfig:
+    gyro_noise: float = 0.003  # [rad/s] per sample σ (matches the IMU)
+    accel_noise: float = 0.05  # [m/s²] per sample σ
+    gyro_bias_walk: float = 2e-4  # [rad/s/√s]
+    accel_bias_walk: float = 1e-3  # [m/s²/√s]
+    gps_gate: float = 5.0  # [σ] innovation gate (Mahalanobis distance per axis)
+    baro_noise: float = 0.15  # [m]
+    mag_heading_noise: float = math.radians(3.0)
+    mag_declination: float = 0.0  # [rad] of the local field (positive east)
+    position_valid_s: float = 1.0  # a position fix younger than this keeps the position valid
+    home_fixes: int = 20  # GNSS fixes averaged to set home (the local frame's geodetic origin)
+    heading_valid_s: float = 2.0
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def _rotation(q: quat.Quat) -> np.ndarray:
+    w, x, y, z = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+class NavigationEkf:
+    def __init__(self, config: EkfConfig | None = None) -> None:
+        self.cfg = config or EkfConfig()
+        self.p = np.zeros(3)
+        self.v = np.zeros(3)
+        self.q: quat.Quat = quat.IDENTITY
+        self.bg = np.zeros(3)
+        self.ba = np.zeros(3)
+        self.P = np.diag([100.0] * 3 + [4.0] * 3 + [0.05] * 3 + [0.02**2] * 3 + [0.2**2] * 3)
+        self.aligned = False
+        self.origin: GeoOrigin | None = None
+        self.baro_offset: float | None = None
+        self.t = 0.0
+        self.last_gps = -math.inf
+        self.last_mag = -math.inf
+        self.rejected = {"gps": 0, "baro": 0, "mag": 0}
+        self.accel_world = np.zeros(3)
+        self.omega = np.zeros(3)
+        self._align_acc: list[np.ndarray] = []
+        self._align_mag: np.ndarray | None = None
+        self._home_fixes: list[tuple[float, float, float]] = []
+
+    # ---------------------------------------------------------------- alignment
+    def align(self, accel: Vec, mag: Vec | None) -> bool:
+        """Static alignment from averaged accelerometer samples (+ magnetometer for yaw)."""
+        self._align_acc.append(np.asarray(accel, dtype=float))
+        if mag is not None:
+            self._align_mag = np.asarray(mag, dtype=float)
+        if len(self._align_acc) < 50:
+            return False
+        f = np.mean(self._align_acc, axis=0)
+        roll = math.atan2(f[1], f[2])
+        pitch = math.atan2(-f[0], math.hypot(f[1], f[2]))
+        yaw = 0.0
+        if self._align_mag is not None:
+            yaw = self._heading_from_mag(self._align_mag, roll, pitch)
+        self.q = quat.from_euler(roll, pitch, yaw)
+        # after a static alignment the tilt error is what the accelerometer bias hides (~b_a/g);
+        # a tight tilt prior keeps the (unobservable in hover) tilt / bias split physical
+        self.P[6:8, 6:8] = np.eye(2) * math.radians(1.0) ** 2
+        self.P[8, 8] = math.radians(10.0 if mag is not None else 180.0) ** 2
+        self.P[12:15, 12:15] = np.eye(3) * 0.1**2
+        self.aligned = True
+        self._align_acc.clear()
+        return True
+
+    def _heading_from_mag(self, m: np.ndarray, roll: float, pitch: float) -> float:
+        """ENU yaw (0 = east) of the body x axis from a body-frame field sample and tilt."""
+        level = quat.rotate(quat.from_euler(roll, pitch, 0.0), (float(m[0]), float(m[1]), float(m[2])))
+        # horizontal field points to magnetic north; body x heading relative to north, then ENU
+        north_angle = math.atan2(level[1], level[0])  # angle of north in the yaw-free body frame
+        return math.pi / 2 - north_angle - self.cfg.mag_declination
+
+    # ---------------------------------------------------------------- prediction
+    def predict(self, gyro: Vec, accel: Vec, dt: float) -> None:
+        if not self.aligned or dt <= 0:
+            return
+        cfg = self.cfg
+        w = np.asarray(gyro) - self.bg
+        f = np.asarray(accel) - self.ba
+        R = _rotation(self.q)
+        a = R @ f + np.array([0.0, 0.0, -GRAVITY])
+        self.p += self.v * dt + 0.5 * a * dt * dt
+        self.v += a * dt
+        self.q = quat.integrate(self.q, (float(w[0]), float(w[1]), float(w[2])), dt)
+        self.accel_world, self.omega = a, w
+        phi = np.eye(15)
+        phi[0:3, 3:6] = np.eye(3) * dt
+        phi[3:6, 6:9] = -_skew(R @ f) * dt
+        phi[3:6, 12:15] = -R * dt
+        phi[6:9, 9:12] = -R * dt
+        q_diag = np.concatenate([
+            np.zeros(3),
+            np.full(3, (cfg.accel_noise * dt) ** 2),
+            np.full(3, (cfg.gyro_noise * dt) ** 2),
+            np.full(3, cfg.gyro_bias_walk**2 * dt),
+            np.full(3, cfg.accel_bias_walk**2 * dt),
+        ])
+        self.P = phi @ self.P @ phi.T + np.diag(q_diag)
+        self.t += dt
+
+    # ---------------------------------------------------------------- updates
+    def _update(self, H: np.ndarray, innovation: np.ndarray, Rm: np.ndarray, gate: float | None = None) -> bool:
+        S = H @ self.P @ H.T + Rm
+        if gate is not None:
+            d2 = float(innovation @ np.linalg.solve(S, innovation))
+            if d2 > gate * gate * len(innovation):
+                return False
+        K = self.P @ H.T @ np.linalg.inv(S)
+        dx = K @ innovation
+        self.p += dx[0:3]
+        self.v += dx[3:6]
+        dq = quat.from_euler(0.0, 0.0, 0.0)
+        theta = dx[6:9]
+        angle = float(np.linalg.norm(theta))
+        if angle > 1e-12:
+            axis = theta / angle
+            s = math.sin(angle / 2)
+            dq = (math.cos(angle / 2), axis[0] * s, axis[1] * s, axis[2] * s)
+        self.q = quat.normalize(quat.mul(dq, self.q))
+        self.bg += dx[9:12]
+        self.ba += dx[12:15]
+        I_KH = np.eye(15) - K @ H
+        self.P = I_KH @ self.P @ I_KH.T + K @ Rm @ K.T  # Joseph form: stays symmetric positive
+        return True
+
+    def update_gps(self, latitude: float, longitude: float, altitude: float, sigma_h: float, sigma_v: float,
+                   age: float = 0.0) -> bool:
+        if self.origin is None:
+            # home = mean of the first fixes (one fix alone carries its full noise into the frame)
+            self._home_fixes.append((latitude, longitude, altitude))
+            if len(self._home_fixes) < self.cfg.home_fixes:
+                return False
+            lat, lon, alt = (sum(c) / len(self._home_fixes) for c in zip(*self._home_fixes, strict=True))
+            self.origin = GeoOrigin(lat, lon, alt)
+            self._home_fixes.clear()
+            if self.aligned:
+                self.p[:] = np.asarray(self.origin.to_enu(latitude, longitude, altitude))
+        if not self.aligned:
+            return False
+        z = np.asarray(self.origin.to_enu(latitude, longitude, altitude)) + self.v * max(0.0, age)
+        H = np.zeros((3, 15))
+        H[:, 0:3] = np.eye(3)
+        ok = self._update(H, z - self.p, np.diag([sigma_h**2, sigma_h**2, sigma_v**2]), self.cfg.gps_gate)
+        if ok:
+            self.last_gps = self.t
+        else:
+            self.rejected["gps"] += 1
+        return ok
+
+    def update_baro(self, pressure: float) -> bool:
+        if not self.aligned or self.origin is None:
+            return False
+        altitude = altitude_at_pressure(pressure)
+        if self.baro_offset is None:
+            self.baro_offset = altitude - self.p[2]
+            return False
+        H = np.zeros((1, 15))
+        H[0, 2] = 1.0
+        ok = self._update(H, np.array([altitude - self.baro_offset - self.p[2]]), np.array([[self.cfg.baro_noise**2]]), 5.0)
+        if not ok:
+            self.rejected["baro"] += 1
+        return ok
+
+    def update_mag(self, field: Vec) -> bool:
+        if not self.aligned:
+            return False
+        roll, pitch, yaw = quat.to_euler(self.q)
+        measured = self._heading_from_mag(np.asarray(field), roll, pitch)
+        innovation = math.atan2(math.sin(measured - yaw), math.cos(measured - yaw))
+        H = np.zeros((1, 15))
+        H[0, 8] = 1.0  # world-frame yaw error
+        ok = self._update(H, np.array([innovation]), np.array([[self.cfg.mag_heading_noise**2]]), 5.0)
+        if ok:
+            self.last_mag = self.t
+        else:
+            self.rejected["mag"] += 1
+        return ok
+
+    # ---------------------------------------------------------------- outputs
+    @property
+    def position_valid(self) -> bool:
+        return self.aligned and self.t - self.last_gps < self.cfg.position_valid_s and float(np.trace(self.P[0:3, 0:3])) < 27.0
+
+    @property
+    def heading_valid(self) -> bool:
+        return self.aligned and self.t - self.last_mag < self.cfg.heading_valid_s

@@ -1,0 +1,204 @@
+"""Sensor models for the SITL vehicle, ROS-free and seeded.
+
+IMU (gyro + accelerometer: white noise + bias random walk, body FLU), GNSS (geodetic fix with
+horizontal/vertical noise and a transport latency), barometer (ISA pressure of the true AMSL
+altitude plus noise), magnetometer (Earth field rotated into the body, plus noise), downward
+range finder (distance to the ground along body −z, max range), battery (open-circuit voltage
+from the state of charge, sag I·R, current from the motor thrusts). Faults change what the
+models output: dropout (no sample), freeze (last sample repeated), GNSS loss or drift, battery
+drain factor. The node turns samples into sensor_msgs.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+
+from c4d_gnc import quat
+from c4d_gnc.geodesy import GeoOrigin, pressure_at_altitude
+
+from .plant import PlantState
+
+Vec = tuple[float, float, float]
+EARTH_FIELD_ENU: Vec = (0.0, 2.2e-5, -4.2e-5)  # [T] ~ mid-latitude: 22 µT north, 42 µT down
+
+
+class SensorConfigError(ValueError):
+    """Invalid sensor configuration (names the field)."""
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    imu_rate_hz: float = 500.0
+    gyro_noise: float = 0.003  # [rad/s] per sample
+    gyro_bias_walk: float = 2e-4  # [rad/s/√s]
+    gyro_bias_initial: float = 0.01  # [rad/s] σ of the turn-on bias
+    accel_noise: float = 0.05  # [m/s²] per sample
+    accel_bias_walk: float = 1e-3  # [m/s²/√s]
+    accel_bias_initial: float = 0.05
+    gps_rate_hz: float = 10.0
+    gps_noise_horizontal: float = 0.3  # [m] σ
+    gps_noise_vertical: float = 0.5
+    gps_latency_s: float = 0.05
+    baro_rate_hz: float = 50.0
+    baro_noise: float = 0.1  # [m] equivalent σ
+    mag_rate_hz: float = 50.0
+    mag_noise: float = 3e-7  # [T] σ
+    range_rate_hz: float = 50.0
+    range_noise: float = 0.02
+    range_max: float = 10.0
+    battery_rate_hz: float = 10.0
+    battery_cells: int = 4
+    battery_capacity_ah: float = 5.0
+    battery_resistance: float = 0.03  # [Ω] pack
+    amps_per_newton: float = 1.3  # motor current per newton of thrust
+    avionics_amps: float = 0.8
+
+    @classmethod
+    def from_dict(cls, doc: Mapping | None) -> SensorConfig:
+        doc = dict(doc or {})
+        known = {f.name: f for f in fields(cls)}
+        for key, value in doc.items():
+            if key not in known:
+                raise SensorConfigError(f"sensors: unknown field '{key}'")
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise SensorConfigError(f"sensors: field '{key}' must be a non-negative number, got {value!r}")
+        for key in ("imu_rate_hz", "gps_rate_hz", "baro_rate_hz", "mag_rate_hz", "range_rate_hz", "battery_rate_hz",
+                    "battery_capacity_ah", "range_max"):
+            if key in doc and doc[key] <= 0:
+                raise SensorConfigError(f"sensors: field '{key}' must be > 0")
+        if "battery_cells" in doc:
+            doc["battery_cells"] = int(doc["battery_cells"])
+        return cls(**doc)
+
+
+@dataclass
+class Faults:
+    """Active faults (set by the node's parameters). Dropout = no samples, freeze = stuck."""
+
+    imu_dropout: bool = False
+    imu_freeze: bool = False
+    gps_loss: bool = False
+    gps_drift: Vec = (0.0, 0.0, 0.0)  # [m/s] drift rate of the reported position (ENU)
+    baro_dropout: bool = False
+    baro_freeze: bool = False
+    mag_dropout: bool = False
+    range_dropout: bool = False
+    battery_drain_factor: float = 1.0
+
+
+@dataclass
+class ImuSample:
+    stamp: float
+    gyro: Vec
+    accel: Vec
+    orientation: quat.Quat
+
+
+@dataclass
+class GpsSample:
+    stamp: float  # measurement time (published `latency` later)
+    latitude: float
+    longitude: float
+    altitude: float
+    sigma_h: float
+    sigma_v: float
+
+
+@dataclass
+class BatterySample:
+    stamp: float
+    voltage: float
+    current: float
+    charge_ah: float
+    percentage: float
+
+
+@dataclass
+class SensorSuite:
+    config: SensorConfig
+    origin: GeoOrigin
+    seed: int = 0
+    faults: Faults = field(default_factory=Faults)
+
+    def __post_init__(self) -> None:
+        c = self.config
+        self.rng = random.Random(self.seed)
+        g = self.rng.gauss
+        self.gyro_bias = [g(0, c.gyro_bias_initial) for _ in range(3)]
+        self.accel_bias = [g(0, c.accel_bias_initial) for _ in range(3)]
+        self.drift = [0.0, 0.0, 0.0]
+        self.charge_used_ah = 0.0
+        self._last_imu: ImuSample | None = None
+        self._last_baro: tuple[float, float] | None = None
+
+    def _walk(self, bias: list[float], rate: float, dt: float) -> None:
+        s = rate * math.sqrt(dt)
+        for k in range(3):
+            bias[k] += self.rng.gauss(0, s)
+
+    def imu(self, s: PlantState, dt: float) -> ImuSample | None:
+        c, f = self.config, self.faults
+        self._walk(self.gyro_bias, c.gyro_bias_walk, dt)
+        self._walk(self.accel_bias, c.accel_bias_walk, dt)
+        if f.imu_dropout:
+            return None
+        if f.imu_freeze and self._last_imu is not None:
+            return ImuSample(s.t, self._last_imu.gyro, self._last_imu.accel, self._last_imu.orientation)
+        g = self.rng.gauss
+        gyro = tuple(s.angular_velocity[k] + self.gyro_bias[k] + g(0, c.gyro_noise) for k in range(3))
+        accel = tuple(s.specific_force[k] + self.accel_bias[k] + g(0, c.accel_noise) for k in range(3))
+        sample = ImuSample(s.t, gyro, accel, s.orientation)  # type: ignore[arg-type]
+        self._last_imu = sample
+        return sample
+
+    def gps(self, s: PlantState, dt: float) -> GpsSample | None:
+        c, f = self.config, self.faults
+        for k in range(3):
+            self.drift[k] += f.gps_drift[k] * dt
+        if f.gps_loss:
+            return None
+        g = self.rng.gauss
+        e = s.position[0] + self.drift[0] + g(0, c.gps_noise_horizontal)
+        n = s.position[1] + self.drift[1] + g(0, c.gps_noise_horizontal)
+        u = s.position[2] + self.drift[2] + g(0, c.gps_noise_vertical)
+        lat, lon, alt = self.origin.to_geodetic(e, n, u)
+        return GpsSample(s.t, lat, lon, alt, c.gps_noise_horizontal, c.gps_noise_vertical)
+
+    def baro(self, s: PlantState) -> tuple[float, float] | None:
+        """(stamp, static pressure [Pa])."""
+        if self.faults.baro_dropout:
+            return None
+        if self.faults.baro_freeze and self._last_baro is not None:
+            return (s.t, self._last_baro[1])
+        altitude = self.origin.altitude + s.position[2] + self.rng.gauss(0, self.config.baro_noise)
+        self._last_baro = (s.t, pressure_at_altitude(altitude))
+        return self._last_baro
+
+    def mag(self, s: PlantState) -> Vec | None:
+        if self.faults.mag_dropout:
+            return None
+        b = quat.rotate_inverse(s.orientation, EARTH_FIELD_ENU)
+        g, sigma = self.rng.gauss, self.config.mag_noise
+        return (b[0] + g(0, sigma), b[1] + g(0, sigma), b[2] + g(0, sigma))
+
+    def range_down(self, s: PlantState) -> float | None:
+        """Distance along body −z to flat ground, +inf beyond range (sensor_msgs/Range style)."""
+        if self.faults.range_dropout:
+            return None
+        cos_tilt = quat.body_z(s.orientation)[2]
+        if cos_tilt <= 0.1:
+            return math.inf
+        distance = s.position[2] / cos_tilt + self.rng.gauss(0, self.config.range_noise)
+        return distance if 0.0 <= distance <= self.config.range_max else math.inf
+
+    def battery(self, s: PlantState, dt: float) -> BatterySample:
+        c = self.config
+        current = c.avionics_amps + c.amps_per_newton * sum(s.thrusts)
+        self.charge_used_ah += current * dt / 3600.0 * self.faults.battery_drain_factor
+        soc = max(0.0, 1.0 - self.charge_used_ah / c.battery_capacity_ah)
+        open_circuit = c.battery_cells * (3.3 + 0.9 * soc)  # 4.2 V/cell full, 3.3 V/cell empty
+        return BatterySample(s.t, open_circuit - current * c.battery_resistance, current,
+                             c.battery_capacity_ah * soc, soc)
