@@ -83,7 +83,7 @@ def test_core_process_schedule_stats_arm_and_clean_stop(ros, module_processes):
     refused = call(command=VehicleCommand.Request.CMD_ARM)
     assert refused.result == VehicleCommand.Response.RESULT_TEMPORARILY_REJECTED and "stale" in refused.message
 
-    pub_imu = node.create_publisher(Imu, "sensors/imu", best)
+    pub_imu = node.create_publisher(Imu, "perception/imu", best)
     pub_state = node.create_publisher(VehicleState, "navigation/state", best)
 
     def feed():

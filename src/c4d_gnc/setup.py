@@ -20,5 +20,11 @@ setup(
     maintainer_email="maintainers@c4d.dev",
     description="c4d GNC core: cyclic executive + cascaded multirotor controller",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["core = c4d_gnc.core_node:main"]},
+    entry_points={
+        "console_scripts": [
+            "core = c4d_gnc.core_node:main",
+            "perception = c4d_gnc.perception_node:main",
+            "navigation = c4d_gnc.navigation_node:main",
+        ]
+    },
 )

@@ -9,6 +9,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/config", ["config/sim.yaml"]),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
@@ -16,5 +17,5 @@ setup(
     maintainer_email="maintainers@c4d.dev",
     description="c4d multirotor plant model (and, later, the real-time SITL node)",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": ["sim = c4d_sim.sim_node:main"]},
 )

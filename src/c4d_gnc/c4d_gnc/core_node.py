@@ -28,10 +28,11 @@ from c4d_sched.profiler import format_table
 
 from .core_config import CoreConfigError, load_core_config
 from .gnc import Command, GncCore, Mode, Request
+from .ros_drain import Drainer
 
 RESULT_ACCEPTED, RESULT_TEMPORARILY_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED = 0, 1, 2, 3
 STATUS_PERIOD_S = 0.5
-MAX_DRAIN = 16
+HOUSEKEEPING_TICKS = 50
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -52,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
         config_path = node.declare_parameter("config", "").value
         airframe = node.declare_parameter("airframe", "").value
         method = node.declare_parameter("phase_method", "").value
-        imu_topic = node.declare_parameter("imu_topic", "sensors/imu").value
+        imu_topic = node.declare_parameter("imu_topic", "perception/imu").value
         log_table = node.declare_parameter("log_table", False).value
         cfg = load_core_config(config_path or None, airframe or None, method or None)
     except CoreConfigError as exc:
@@ -67,30 +68,25 @@ def main(argv: list[str] | None = None) -> int:
     state_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     stats_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-    handled = [0]
 
     def clock_s() -> float:
         return node.get_clock().now().nanoseconds * 1e-9
 
     def on_imu(msg: Imu) -> None:
-        handled[0] += 1
         w = msg.angular_velocity
         core.inputs.gyro = (w.x, w.y, w.z)
         core.inputs.gyro_stamp = conv.stamp_to_s(msg.header.stamp)
 
     def on_state(msg: VehicleState) -> None:
-        handled[0] += 1
         core.inputs.state = conv.state_from_msg(msg)
 
     def on_setpoint(msg: GuidanceSetpoint) -> None:
-        handled[0] += 1
         try:
             core.inputs.setpoint = conv.setpoint_from_msg(msg)
         except ValueError as exc:
             node.get_logger().warning(f"guidance setpoint ignored: {exc}")
 
     def on_command(request: VehicleCommand.Request, response: VehicleCommand.Response) -> VehicleCommand.Response:
-        handled[0] += 1
         core.inputs.now = clock_s()
         try:
             command = Command(request.command)
@@ -111,10 +107,11 @@ def main(argv: list[str] | None = None) -> int:
             response.message = reason
         return response
 
-    node.create_subscription(Imu, imu_topic, on_imu, sensor_qos)
-    node.create_subscription(VehicleState, "navigation/state", on_state, state_qos)
-    node.create_subscription(GuidanceSetpoint, "guidance/setpoint", on_setpoint, state_qos)
-    node.create_service(VehicleCommand, "gnc/command", on_command)
+    drainer = Drainer(node)
+    drainer.subscription(Imu, imu_topic, on_imu, sensor_qos)
+    drainer.subscription(VehicleState, "navigation/state", on_state, state_qos)
+    drainer.subscription(GuidanceSetpoint, "guidance/setpoint", on_setpoint, state_qos)
+    drainer.service(VehicleCommand, "gnc/command", on_command)
     pub_actuators = node.create_publisher(ActuatorCommand, "control/actuators", state_qos)
     pub_status = node.create_publisher(VehicleStatus, "vehicle/status", latched)
     pub_stats = node.create_publisher(ExecutorStats, "gnc/executor_stats", stats_qos)
@@ -125,11 +122,9 @@ def main(argv: list[str] | None = None) -> int:
     last_status: dict[str, object] = {"key": None, "time": 0.0, "arm_ns": 0, "armed": False}
 
     def input_phase(k: int) -> None:
-        for _ in range(MAX_DRAIN):  # drain what is ready, never wait
-            before = handled[0]
-            executor.spin_once(timeout_sec=0.0)
-            if handled[0] == before:
-                break
+        drainer.drain()  # take what is queued, never wait (see ros_drain.py)
+        if k % HOUSEKEEPING_TICKS == 0:
+            executor.spin_once(timeout_sec=0.0)  # parameter services and graph events, 10 Hz
         core.inputs.now = clock_s()
 
     def status_task(k: int) -> None:

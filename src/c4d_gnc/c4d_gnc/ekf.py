@@ -6,7 +6,8 @@ sample (strapdown: a = R(f − b_a) + g); the error covariance follows δṗ = �
 random walks. Updates: GNSS position (latency compensated with the current velocity), barometric
 altitude (offset learnt at home), magnetometer heading. Static alignment (roll and pitch from
 gravity, yaw from the magnetometer) starts the filter; home (the geodetic origin of the local
-frame) is the mean of the first GNSS fixes. Each sensor is optional: without GNSS the position is flagged
+frame) is the mean of the first GNSS fixes, taken at rest (the barometer offset is the mean
+barometric altitude over the same window). Each sensor is optional: without GNSS the position is flagged
 invalid (and its covariance grows); without magnetometer the heading is flagged invalid.
 Why an error-state filter: the attitude error stays small and three-dimensional, so the
 filter is well conditioned with a unit quaternion as nominal attitude.
@@ -45,7 +46,8 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def _rotation(q: quat.Quat) -> np.ndarray:
+def rotation_matrix(q: quat.Quat) -> np.ndarray:
+    """Rotation matrix (body → world) of a unit quaternion."""
     w, x, y, z = q
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
@@ -75,6 +77,7 @@ class NavigationEkf:
         self._align_acc: list[np.ndarray] = []
         self._align_mag: np.ndarray | None = None
         self._home_fixes: list[tuple[float, float, float]] = []
+        self._home_baro: list[float] = []
 
     # ---------------------------------------------------------------- alignment
     def align(self, accel: Vec, mag: Vec | None) -> bool:
@@ -114,7 +117,7 @@ class NavigationEkf:
         cfg = self.cfg
         w = np.asarray(gyro) - self.bg
         f = np.asarray(accel) - self.ba
-        R = _rotation(self.q)
+        R = rotation_matrix(self.q)
         a = R @ f + np.array([0.0, 0.0, -GRAVITY])
         self.p += self.v * dt + 0.5 * a * dt * dt
         self.v += a * dt
@@ -170,8 +173,12 @@ class NavigationEkf:
             lat, lon, alt = (sum(c) / len(self._home_fixes) for c in zip(*self._home_fixes, strict=True))
             self.origin = GeoOrigin(lat, lon, alt)
             self._home_fixes.clear()
-            if self.aligned:
-                self.p[:] = np.asarray(self.origin.to_enu(latitude, longitude, altitude))
+            # home is set while the vehicle stands still where the fixes were taken: it is at 0
+            self.p[:] = 0.0
+            self.v[:] = 0.0
+            if self._home_baro:  # the barometer's offset is learnt over the same window
+                self.baro_offset = sum(self._home_baro) / len(self._home_baro)
+            return False
         if not self.aligned:
             return False
         z = np.asarray(self.origin.to_enu(latitude, longitude, altitude)) + self.v * max(0.0, age)
@@ -185,11 +192,11 @@ class NavigationEkf:
         return ok
 
     def update_baro(self, pressure: float) -> bool:
-        if not self.aligned or self.origin is None:
-            return False
         altitude = altitude_at_pressure(pressure)
-        if self.baro_offset is None:
-            self.baro_offset = altitude - self.p[2]
+        if self.origin is None:
+            self._home_baro.append(altitude)  # averaged into the offset when home is set
+            return False
+        if not self.aligned or self.baro_offset is None:
             return False
         H = np.zeros((1, 15))
         H[0, 2] = 1.0

@@ -165,6 +165,7 @@ class GncCore:
         self.torque: Vec = (0.0, 0.0, 0.0)
         self.yaw_rate_ff = 0.0
         self.landed_timer = 0.0
+        self.landing_velocity: Vec = (0.0, 0.0, 0.0)
         self.active: Setpoint | None = None
 
     # ----------------------------------------------------------------- requests & latch
@@ -242,6 +243,8 @@ class GncCore:
             self._capture_hold()
             out.mode, out.nav, out.landed = Mode.AUTO, Nav.LAND, Landed.LANDING
             self.landed_timer = 0.0
+            s = self.state or self.inputs.state
+            self.landing_velocity = s.velocity if s else (0.0, 0.0, 0.0)
         elif req.command == Command.HOLD:
             self._capture_hold()
             out.mode, out.nav = Mode.AUTO, Nav.HOLD
@@ -295,8 +298,13 @@ class GncCore:
         self.active = Setpoint(now, Level.POSITION, self.hold, (0.0, 0.0, 0.0), yaw=self.hold_yaw)
 
     def _detect_landing(self, s: StateSample, dt: float) -> None:
+        """Touchdown = the estimated velocity (low-passed, τ 0.3 s: estimator noise must not reset
+        the timer) is ~zero while the thrust stays well below hover, for LANDED_TIME_S."""
         hover_thrust = self.af.mass * GRAVITY
-        still = abs(s.velocity[2]) < 0.15 and math.hypot(s.velocity[0], s.velocity[1]) < 0.3
+        alpha = min(1.0, dt / 0.3)
+        self.landing_velocity = tuple(f + alpha * (v - f) for f, v in zip(self.landing_velocity, s.velocity, strict=True))
+        vx, vy, vz = self.landing_velocity
+        still = abs(vz) < 0.2 and math.hypot(vx, vy) < 0.5
         if still and self.thrust < 0.7 * hover_thrust:
             self.landed_timer += dt
         else:

@@ -77,15 +77,18 @@ class MultirotorPlant:
         )
         px, py, pz = s.position
         if s.on_ground and acc[2] <= 0.0:
-            # resting on the ground: level, still, heading kept
+            # resting on the ground: level, still, heading kept. The accelerometer sees the
+            # velocity it loses in this step (the contact impulse), so an inertial estimator
+            # integrating it stays consistent with the stop.
             yaw = quat.yaw_of(s.orientation)
             s.orientation = quat.from_euler(0.0, 0.0, yaw)
+            stop = (-vx / dt, -vy / dt, -vz / dt)
             s.velocity = (0.0, 0.0, 0.0)
             s.angular_velocity = (0.0, 0.0, 0.0)
             s.position = (px, py, 0.0)
-            s.acceleration = (0.0, 0.0, 0.0)
+            s.acceleration = stop
             s.angular_acceleration = (0.0, 0.0, 0.0)
-            s.specific_force = quat.rotate_inverse(s.orientation, (0.0, 0.0, GRAVITY))
+            s.specific_force = quat.rotate_inverse(s.orientation, (stop[0], stop[1], stop[2] + GRAVITY))
             s.t += dt
             return s
         v = (vx + acc[0] * dt, vy + acc[1] * dt, vz + acc[2] * dt)
@@ -93,10 +96,12 @@ class MultirotorPlant:
         w = (wx + ax_ * dt, wy + ay_ * dt, wz + az_ * dt)
         q = quat.integrate(s.orientation, w, dt)
         on_ground = False
-        if p[2] <= 0.0:  # touchdown: stop the vertical motion
+        if p[2] <= 0.0:  # touchdown: the ground stops the vertical motion
             p = (p[0], p[1], 0.0)
             v = (v[0], v[1], 0.0) if v[2] < 0 else v
             on_ground = v[2] <= 0.0
+        # what an accelerometer measures is the actual velocity change (contact impulse included)
+        acc = ((v[0] - vx) / dt, (v[1] - vy) / dt, (v[2] - vz) / dt)
         s.position, s.velocity, s.orientation, s.angular_velocity = p, v, q, w
         s.acceleration = acc
         s.angular_acceleration = (ax_, ay_, az_)
