@@ -12,13 +12,15 @@ Interfaces (docs/ARCHITECTURE.md):
               vehicle/status (VehicleStatus, latched, on change and at 2 Hz),
               gnc/executor_stats (ExecutorStats, at report_period_s), gnc/schedule (ScheduleTable, latched)
 Parameters: config (core YAML), airframe (name or path), phase_method (gcdplus|paparazzi|zero),
-            imu_topic, log_table (print the profiler table each report).
+            imu_topic, log_table (print the profiler table each report), rt_priority (SCHED_FIFO
+            priority for the process, 0 = normal scheduling).
 SIGINT/SIGTERM: the loop stops, zero motor commands (armed = false) are published, exit 0.
 Bad configuration: one line on stderr, exit 2, nothing armed.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import time
@@ -55,6 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         method = node.declare_parameter("phase_method", "").value
         imu_topic = node.declare_parameter("imu_topic", "perception/imu").value
         log_table = node.declare_parameter("log_table", False).value
+        rt_priority = int(node.declare_parameter("rt_priority", 0).value)
         cfg = load_core_config(config_path or None, airframe or None, method or None)
     except CoreConfigError as exc:
         print(f"core: error: {exc}", file=sys.stderr)
@@ -168,6 +171,12 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
+    if rt_priority > 0:
+        try:  # real-time FIFO scheduling: the executive preempts the rest of the graph on wake-up
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
+            node.get_logger().info(f"SCHED_FIFO priority {rt_priority}")
+        except (PermissionError, OSError) as exc:
+            node.get_logger().warning(f"rt_priority {rt_priority} not applied ({exc}); running with normal priority")
     pub_schedule.publish(conv.schedule_msg(schedule, cfg.executive_name, clock_s()))
     input_phase(0)  # warm-up outside the timed loop: first-call costs must not count as an overrun
     output_phase(0)

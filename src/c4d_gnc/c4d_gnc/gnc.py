@@ -84,6 +84,7 @@ class StateSample:
     angular_velocity: Vec
     valid_position: bool = True
     valid_attitude: bool = True
+    terrain_distance: float = NAN  # [m] downward range to the ground, NaN when unknown
 
 
 @dataclass
@@ -298,18 +299,20 @@ class GncCore:
         self.active = Setpoint(now, Level.POSITION, self.hold, (0.0, 0.0, 0.0), yaw=self.hold_yaw)
 
     def _detect_landing(self, s: StateSample, dt: float) -> None:
-        """Touchdown = the estimated velocity (low-passed, τ 0.3 s: estimator noise must not reset
-        the timer) is ~zero while the thrust stays well below hover, for LANDED_TIME_S."""
+        """Touchdown = thrust well below hover while either the range finder sees the ground
+        within 0.2 m (for 0.5 s), or, without a range reading, the estimated velocity
+        (low-passed, τ 0.3 s, so estimator noise cannot reset the timer) is ~zero (for 1 s)."""
         hover_thrust = self.af.mass * GRAVITY
         alpha = min(1.0, dt / 0.3)
         self.landing_velocity = tuple(f + alpha * (v - f) for f, v in zip(self.landing_velocity, s.velocity, strict=True))
         vx, vy, vz = self.landing_velocity
+        near_ground = math.isfinite(s.terrain_distance) and s.terrain_distance < 0.2
         still = abs(vz) < 0.2 and math.hypot(vx, vy) < 0.5
-        if still and self.thrust < 0.7 * hover_thrust:
+        if (near_ground or still) and self.thrust < 0.75 * hover_thrust:
             self.landed_timer += dt
         else:
             self.landed_timer = 0.0
-        if self.landed_timer >= LANDED_TIME_S:
+        if self.landed_timer >= (LANDED_TIME_S / 2 if near_ground else LANDED_TIME_S):
             out = self.out
             out.armed, out.nav, out.landed = False, Nav.NONE, Landed.ON_GROUND
             out.events.append("landed")

@@ -101,7 +101,7 @@ class ClosedLoop:
             g = self.rng.gauss
             q = quat.mul(q, quat.from_euler(g(0, n.attitude), g(0, n.attitude), g(0, n.attitude)))
         state = StateSample(now, self._noisy(s.position, n.position), self._noisy(s.velocity, n.velocity), q,
-                            self._noisy(s.angular_velocity, n.gyro))
+                            self._noisy(s.angular_velocity, n.gyro), terrain_distance=s.position[2])
         inputs = self.core.inputs
         inputs.now, inputs.state = now, state
         inputs.gyro, inputs.gyro_stamp = state.angular_velocity, now
