@@ -62,7 +62,8 @@ def main(argv: list[str] | None = None) -> int:
         ekf.update_baro(msg.fluid_pressure)
 
     def on_range(msg: Range) -> None:
-        memory["range"] = (msg.range, stamp_to_s(msg.header.stamp))
+        distance = 0.0 if msg.range == -math.inf else msg.range  # −inf: closer than min range (on the ground)
+        memory["range"] = (distance, stamp_to_s(msg.header.stamp))
 
     def on_imu(msg: Imu) -> None:
         t = stamp_to_s(msg.header.stamp)

@@ -109,9 +109,10 @@ def valid_fix(latitude: float, longitude: float, altitude: float, has_fix: bool)
 
 
 def valid_range(distance: float) -> bool:
-    """+inf (no return within range) is a valid reading; NaN and negative are not."""
+    """REP 117: +inf (nothing within range) and −inf (closer than the minimum range) are valid
+    readings; NaN and finite values outside [0, 100] m are not."""
     lo, hi = LIMITS["range"]
-    return distance == math.inf or (math.isfinite(distance) and lo <= distance <= hi)
+    return math.isinf(distance) or (math.isfinite(distance) and lo <= distance <= hi)
 
 
 @dataclass(frozen=True)

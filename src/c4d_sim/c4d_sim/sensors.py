@@ -22,6 +22,7 @@ from c4d_gnc.geodesy import GeoOrigin, pressure_at_altitude
 from .plant import PlantState
 
 Vec = tuple[float, float, float]
+RANGE_MIN = 0.05  # [m] minimum range of the downward range finder
 EARTH_FIELD_ENU: Vec = (0.0, 2.2e-5, -4.2e-5)  # [T] ~ mid-latitude: 22 µT north, 42 µT down
 
 
@@ -185,14 +186,17 @@ class SensorSuite:
         return (b[0] + g(0, sigma), b[1] + g(0, sigma), b[2] + g(0, sigma))
 
     def range_down(self, s: PlantState) -> float | None:
-        """Distance along body −z to flat ground, +inf beyond range (sensor_msgs/Range style)."""
+        """Distance along body −z to flat ground; REP 117: +inf = nothing within range,
+        −inf = closer than the minimum range (e.g. standing on the ground)."""
         if self.faults.range_dropout:
             return None
         cos_tilt = quat.body_z(s.orientation)[2]
         if cos_tilt <= 0.1:
             return math.inf
         distance = s.position[2] / cos_tilt + self.rng.gauss(0, self.config.range_noise)
-        return distance if 0.0 <= distance <= self.config.range_max else math.inf
+        if distance < RANGE_MIN:
+            return -math.inf
+        return distance if distance <= self.config.range_max else math.inf
 
     def battery(self, s: PlantState, dt: float) -> BatterySample:
         c = self.config

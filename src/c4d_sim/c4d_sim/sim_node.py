@@ -32,7 +32,7 @@ from c4d_sched.executive import CyclicExecutive, MonotonicClock
 from c4d_sched.tickschedule import TaskSpec, build_schedule
 
 from .plant import MultirotorPlant
-from .sensors import Faults, SensorConfig, SensorConfigError, SensorSuite
+from .sensors import RANGE_MIN, Faults, SensorConfig, SensorConfigError, SensorSuite
 
 
 class SimConfigError(ValueError):
@@ -254,7 +254,7 @@ def main(argv: list[str] | None = None) -> int:
         if sample is not None:
             m = Range()
             m.header.stamp, m.header.frame_id = stamp(plant.state.t), "range_down"
-            m.radiation_type, m.field_of_view, m.min_range, m.max_range = Range.INFRARED, 0.05, 0.05, sc.range_max
+            m.radiation_type, m.field_of_view, m.min_range, m.max_range = Range.INFRARED, 0.05, RANGE_MIN, sc.range_max
             m.range = sample
             pub["range"].publish(m)
 
