@@ -195,8 +195,8 @@ def main(argv: list[str] | None = None) -> int:
     last_tick = [-1]
 
     def physics(k: int) -> None:
-        if last_tick[0] < 0:
-            t_wall0[0] = time.time() - plant.state.t
+        if last_tick[0] < 0:  # anchor simulated t = 0 to the wall-clock time of tick 0's deadline
+            t_wall0[0] = time.time() - (time.monotonic_ns() - executive.t0_ns) / 1e9 - plant.state.t
         fresh = time.monotonic() - command["t"] < 0.2
         s = plant.state
         gust = (cfg["gust"] + extra_gust[0]) * 0.5 * (1 - math.cos(2 * math.pi * s.t / cfg["gust_period"]))
