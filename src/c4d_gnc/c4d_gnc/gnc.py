@@ -71,6 +71,7 @@ class Command(IntEnum):  # VehicleCommand.CMD_* subset served by the core
     LAND = 4
     HOLD = 6
     SET_MODE = 7
+    GOTO = 8  # follow the external guidance setpoint stream (AUTO / GOTO), holding if it goes stale
 
 
 @dataclass
@@ -194,8 +195,10 @@ class GncCore:
             return False, "refusing to disarm in the air (use force)"
         if req.command == Command.SET_MODE and req.mode not in (Mode.RATE, Mode.ATTITUDE, Mode.POSITION, Mode.AUTO, Mode.KILL):
             return False, f"unknown mode {int(req.mode)}"
-        if req.command in (Command.LAND, Command.HOLD) and not armed:
+        if req.command in (Command.LAND, Command.HOLD, Command.GOTO) and not armed:
             return False, "not armed"
+        if req.command == Command.GOTO and landed == Landed.ON_GROUND:
+            return False, "on the ground: take off first"
         self.pending.append(req)
         return True, "accepted: applies at the next tick"
 
@@ -249,6 +252,9 @@ class GncCore:
         elif req.command == Command.HOLD:
             self._capture_hold()
             out.mode, out.nav = Mode.AUTO, Nav.HOLD
+        elif req.command == Command.GOTO:
+            self._capture_hold()
+            out.mode, out.nav = Mode.AUTO, Nav.GOTO
 
     def _reset_controllers(self) -> None:
         self.translation.reset()

@@ -1,0 +1,235 @@
+"""Mission executor: runs a validated plan item by item and produces the core's inputs.
+
+ROS-free: `step(now, vehicle)` is called at the guidance rate (50 Hz) with the vehicle's
+state; it returns the core requests to send (take-off, go-to, land — the core applies them at
+its next tick) and the guidance setpoint to stream. Waypoint legs are flown by a carrot that
+moves along the segment with a trapezoidal speed profile (cruise speed, acceleration limit), so
+the setpoints are smooth; a waypoint is reached when the vehicle is within its acceptance
+radius of it and the carrot has arrived; then its hold time runs. RTL climbs to the RTL
+altitude, flies home and lands. Camera items update `camera` for the payload block.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+from c4d_gnc.geodesy import GeoOrigin
+
+from .plan import Plan
+from .validation import local_point
+
+Vec = tuple[float, float, float]
+
+
+class MissionStatus(IntEnum):  # MissionState.STATE_*
+    NO_PLAN = 0
+    READY = 1
+    ACTIVE = 2
+    PAUSED = 3
+    COMPLETED = 4
+    ABORTED = 5
+
+
+@dataclass
+class Vehicle:
+    position: Vec
+    armed: bool
+    in_air: bool
+    core_nav: int  # VehicleStatus.NAV_*
+    yaw: float = 0.0
+
+
+@dataclass
+class Output:
+    requests: list[tuple[str, float]] = field(default_factory=list)  # ("takeoff", alt) | ("goto", 0) | ("land", 0)
+    setpoint: tuple[Vec, Vec, float] | None = None  # position, velocity feed-forward, yaw
+    reached: list[int] = field(default_factory=list)
+
+
+class LegTracker:
+    """Carrot along A→B: accelerate at `accel` to `speed`, brake to stop at B."""
+
+    def __init__(self, start: Vec, end: Vec, speed: float, accel: float = 1.5) -> None:
+        self.a, self.b = start, end
+        self.length = math.dist(start, end)
+        self.dir = tuple((e - s) / self.length for s, e in zip(start, end, strict=True)) if self.length > 1e-6 else (0, 0, 0)
+        self.speed, self.accel = speed, accel
+        self.s = self.v = 0.0
+
+    @property
+    def done(self) -> bool:
+        return self.s >= self.length - 1e-6
+
+    def advance(self, dt: float) -> tuple[Vec, Vec]:
+        remaining = self.length - self.s
+        self.v = min(self.speed, self.v + self.accel * dt, math.sqrt(max(0.0, 2 * self.accel * remaining)))
+        self.s = min(self.length, self.s + self.v * dt)
+        if self.done:
+            self.v = 0.0
+        position = tuple(a + d * self.s for a, d in zip(self.a, self.dir, strict=True))
+        velocity = tuple(d * self.v for d in self.dir)
+        return position, velocity  # type: ignore[return-value]
+
+
+class MissionExecutor:
+    def __init__(self, default_speed: float = 5.0, default_rtl_altitude: float = 15.0) -> None:
+        self.plan: Plan | None = None
+        self.home: GeoOrigin | None = None
+        self.status = MissionStatus.NO_PLAN
+        self.current = 0
+        self.last_reached = -1
+        self.default_speed, self.default_rtl_altitude = default_speed, default_rtl_altitude
+        self.speed = default_speed
+        self.camera = {"mode": "off", "distance": 0.0, "captures_requested": 0}
+        self._phase = "start"
+        self._tracker: LegTracker | None = None
+        self._hold_until = 0.0
+        self._yaw = 0.0
+        self._flown = 0.0
+
+    # ------------------------------------------------------------------ control
+    def load(self, plan: Plan, home: GeoOrigin) -> None:
+        self.plan, self.home = plan, home
+        self.status, self.current, self.last_reached = MissionStatus.READY, 0, -1
+        self.speed = plan.cruise_speed if plan.cruise_speed > 0 else self.default_speed
+        self._phase = "start"
+
+    def clear(self) -> None:
+        self.plan, self.status, self.current, self.last_reached = None, MissionStatus.NO_PLAN, 0, -1
+
+    def start(self, item: int = 0) -> str:
+        if self.plan is None:
+            return "no plan loaded"
+        if not 0 <= item < len(self.plan.items):
+            return f"item {item} does not exist"
+        self.current, self._phase, self.status = item, "start", MissionStatus.ACTIVE
+        return ""
+
+    def pause(self) -> str:
+        if self.status != MissionStatus.ACTIVE:
+            return "mission is not active"
+        self.status = MissionStatus.PAUSED
+        return ""
+
+    def resume(self) -> str:
+        if self.status != MissionStatus.PAUSED:
+            return "mission is not paused"
+        self.status, self._phase = MissionStatus.ACTIVE, "start"
+        return ""
+
+    def abort(self) -> None:
+        if self.status in (MissionStatus.ACTIVE, MissionStatus.PAUSED):
+            self.status = MissionStatus.ABORTED
+
+    @property
+    def progress(self) -> float:
+        if self.plan is None or not self.plan.items:
+            return 0.0
+        if self.status == MissionStatus.COMPLETED:
+            return 1.0
+        return self.current / len(self.plan.items)
+
+    # ------------------------------------------------------------------ execution
+    def step(self, now: float, dt: float, v: Vehicle) -> Output:
+        out = Output()
+        if self.status != MissionStatus.ACTIVE or self.plan is None or self.home is None:
+            return out
+        if self.current >= len(self.plan.items):
+            self.status = MissionStatus.COMPLETED
+            return out
+        item = self.plan.items[self.current]
+        kind = item.type
+        if kind == "change_speed":
+            self.speed = item.speed
+            return self._next(out)
+        if kind.startswith("camera"):
+            if kind == "camera_distance":
+                self.camera.update(mode="distance" if item.camera_distance > 0 else "off", distance=item.camera_distance)
+            elif kind == "camera_start":
+                self.camera["mode"] = "distance" if self.camera["distance"] > 0 else "on"
+            elif kind == "camera_stop":
+                self.camera["mode"] = "off"
+            else:
+                self.camera["captures_requested"] += 1
+            return self._next(out)
+        if kind == "takeoff":
+            return self._takeoff(item.z, v, out)
+        if kind in ("waypoint", "loiter"):
+            return self._goto(now, dt, local_point(item, self.home), item.acceptance_radius, item.hold, item.yaw, v, out)
+        if kind == "rtl":
+            return self._rtl(now, dt, v, out)
+        if kind == "land":
+            if item.has_position and self._phase in ("start", "goto"):
+                target = local_point(item, self.home)
+                done = self._fly(now, dt, (target[0], target[1], v.position[2]), 1.0, v, out)
+                if not done:
+                    return out
+                self._phase = "land"
+            return self._land(v, out)
+        return self._next(out)
+
+    def _next(self, out: Output) -> Output:
+        self.last_reached = self.current
+        out.reached.append(self.current)
+        self.current += 1
+        self._phase, self._tracker = "start", None
+        return out
+
+    def _takeoff(self, altitude: float, v: Vehicle, out: Output) -> Output:
+        if self._phase == "start":
+            if v.in_air:  # already flying: climb like a waypoint
+                self._phase = "done"
+                return self._next(out)
+            out.requests.append(("takeoff", altitude))
+            self._phase = "wait"
+        elif self._phase == "wait" and v.in_air and v.core_nav == 3:  # NAV_HOLD after the climb
+            return self._next(out)
+        return out
+
+    def _fly(self, now: float, dt: float, target: Vec, radius: float, v: Vehicle, out: Output, yaw: float = math.nan) -> bool:
+        if self._tracker is None:
+            if v.core_nav != 4:  # NAV_GOTO: the core follows our setpoints
+                out.requests.append(("goto", 0.0))
+            self._tracker = LegTracker(v.position, target, self.speed)
+            dx, dy = target[0] - v.position[0], target[1] - v.position[1]
+            self._yaw = yaw if math.isfinite(yaw) else (math.atan2(dy, dx) if math.hypot(dx, dy) > 1.0 else v.yaw)
+        position, velocity = self._tracker.advance(dt)
+        out.setpoint = (position, velocity, self._yaw)
+        return self._tracker.done and math.dist(v.position, target) <= radius
+
+    def _goto(self, now, dt, target, radius, hold, yaw, v, out) -> Output:
+        if self._phase in ("start", "goto"):
+            self._phase = "goto"
+            if self._fly(now, dt, target, radius, v, out, yaw):
+                self._phase, self._hold_until = "hold", now + hold
+        if self._phase == "hold":
+            out.setpoint = (target, (0.0, 0.0, 0.0), self._yaw)
+            if now >= self._hold_until:
+                return self._next(out)
+        return out
+
+    def _rtl(self, now, dt, v, out) -> Output:
+        altitude = self.plan.rtl_altitude if self.plan and self.plan.rtl_altitude > 0 else self.default_rtl_altitude
+        if self._phase == "start":
+            self._phase, self._tracker = "climb", None
+        if self._phase == "climb":
+            target = (v.position[0], v.position[1], max(v.position[2], altitude)) if self._tracker is None else self._tracker.b
+            if self._fly(now, dt, target, 1.0, v, out):
+                self._phase, self._tracker = "home", None
+            return out
+        if self._phase == "home":
+            z = self._tracker.b[2] if self._tracker else max(v.position[2], altitude)
+            if self._fly(now, dt, (0.0, 0.0, z), 1.0, v, out):
+                self._phase = "land"
+            return out
+        return self._land(v, out)
+
+    def _land(self, v: Vehicle, out: Output) -> Output:
+        if self._phase != "landing":
+            out.requests.append(("land", 0.0))
+            self._phase = "landing"
+        elif not v.armed:
+            return self._next(out)
+        return out

@@ -1,0 +1,225 @@
+"""Mission plan model and its two file formats: the project YAML and QGroundControl `.plan`.
+
+A plan is a list of items (take-off, waypoint, loiter, change speed, land, return to launch,
+camera start / stop / by distance / single capture), a geofence (inclusion polygon, maximum
+altitude above home, maximum distance from home), a cruise speed and an RTL altitude.
+Positions are global (latitude/longitude in degrees, altitude above home in metres) or local
+ENU metres relative to home. Parsing errors are PlanError with one line naming the item.
+
+Project YAML:
+    name: survey
+    cruise_speed: 4.0            # m/s
+    rtl_altitude: 15.0           # m above home
+    geofence: {polygon: [[lat, lon], ...], max_altitude: 60, max_distance: 400}
+    items:
+      - {type: takeoff, altitude: 10}
+      - {type: waypoint, lat: 43.5630, lon: 1.4816, alt: 10, acceptance_radius: 1.0, hold: 0, yaw_deg: 90}
+      - {type: waypoint, east: 20, north: 0, alt: 10}          # local ENU relative to home
+      - {type: camera_distance, distance: 5}
+      - {type: loiter, east: 0, north: 0, alt: 10, hold: 5}
+      - {type: change_speed, speed: 6}
+      - {type: camera_stop}
+      - {type: rtl}
+      - {type: land}
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import yaml
+
+NAN = float("nan")
+
+ITEM_TYPES = ("takeoff", "waypoint", "loiter", "change_speed", "land", "rtl", "camera_start", "camera_stop",
+              "camera_distance", "camera_capture")
+GLOBAL, LOCAL = "global", "local"
+
+
+class PlanError(ValueError):
+    """A plan file or plan message that cannot be parsed (one line naming the item)."""
+
+
+@dataclass(frozen=True)
+class Item:
+    type: str
+    frame: str = LOCAL
+    x: float = NAN  # latitude [deg] (global) or east [m] (local); NaN = current
+    y: float = NAN  # longitude [deg] or north [m]
+    z: float = NAN  # altitude above home [m]
+    acceptance_radius: float = 1.0
+    hold: float = 0.0  # [s]
+    yaw: float = NAN  # [rad] ENU; NaN = face the direction of travel
+    speed: float = NAN
+    camera_distance: float = 0.0
+
+    @property
+    def has_position(self) -> bool:
+        """Waypoint, loiter or land with a horizontal position (take-off has only an altitude)."""
+        return self.type in ("waypoint", "loiter", "land") and math.isfinite(self.x) and math.isfinite(self.y)
+
+
+@dataclass(frozen=True)
+class Geofence:
+    polygon: tuple[tuple[float, float], ...] = ()  # (lat, lon) vertices
+    max_altitude: float = 0.0  # <= 0: none
+    max_distance: float = 0.0
+
+
+@dataclass(frozen=True)
+class Plan:
+    items: tuple[Item, ...]
+    geofence: Geofence = field(default_factory=Geofence)
+    name: str = "plan"
+    cruise_speed: float = 0.0  # <= 0: vehicle default
+    rtl_altitude: float = 0.0
+    plan_id: int = 0
+
+    def with_id(self, plan_id: int) -> Plan:
+        return replace(self, plan_id=plan_id)
+
+
+def _num(item: dict, key: str, where: str, default: float | None = None) -> float:
+    if key not in item:
+        if default is None:
+            raise PlanError(f"{where}: missing '{key}'")
+        return default
+    value = item[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise PlanError(f"{where}: '{key}' must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _item_from_yaml(doc: object, k: int) -> Item:
+    where = f"item {k}"
+    if not isinstance(doc, dict):
+        raise PlanError(f"{where}: must be a mapping")
+    kind = doc.get("type")
+    if kind not in ITEM_TYPES:
+        raise PlanError(f"{where}: unknown item type {kind!r} (known: {', '.join(ITEM_TYPES)})")
+    allowed = {"type", "lat", "lon", "east", "north", "alt", "altitude", "acceptance_radius", "hold", "yaw_deg",
+               "speed", "distance"}
+    unknown = set(doc) - allowed
+    if unknown:
+        raise PlanError(f"{where}: unknown field(s) {', '.join(sorted(unknown))}")
+    yaw = math.radians(_num(doc, "yaw_deg", where)) if "yaw_deg" in doc else NAN
+    common = {"acceptance_radius": _num(doc, "acceptance_radius", where, 1.0), "hold": _num(doc, "hold", where, 0.0),
+              "yaw": yaw}
+    if common["acceptance_radius"] <= 0 or common["hold"] < 0:
+        raise PlanError(f"{where}: acceptance_radius must be > 0 and hold >= 0")
+    if kind == "takeoff":
+        return Item(kind, LOCAL, NAN, NAN, _num(doc, "altitude", where), **common)
+    if kind in ("waypoint", "loiter", "land"):
+        if "lat" in doc or "lon" in doc:
+            frame, x, y = GLOBAL, _num(doc, "lat", where), _num(doc, "lon", where)
+        elif "east" in doc or "north" in doc:
+            frame, x, y = LOCAL, _num(doc, "east", where), _num(doc, "north", where)
+        elif kind == "land":
+            frame, x, y = LOCAL, NAN, NAN  # land here
+        else:
+            raise PlanError(f"{where}: {kind} needs lat/lon or east/north")
+        z = _num(doc, "alt", where) if kind != "land" else _num(doc, "alt", where, 0.0)
+        return Item(kind, frame, x, y, z, **common)
+    if kind == "change_speed":
+        speed = _num(doc, "speed", where)
+        if speed <= 0:
+            raise PlanError(f"{where}: speed must be > 0")
+        return Item(kind, speed=speed)
+    if kind == "camera_distance":
+        distance = _num(doc, "distance", where)
+        if distance < 0:
+            raise PlanError(f"{where}: distance must be >= 0")
+        return Item(kind, camera_distance=distance)
+    return Item(kind)
+
+
+def plan_from_yaml_text(text: str) -> Plan:
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        raise PlanError(f"malformed YAML{f' at line {mark.line + 1}' if mark else ''}") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("items"), list):
+        raise PlanError("a plan needs an 'items' list")
+    unknown = set(doc) - {"name", "cruise_speed", "rtl_altitude", "geofence", "items"}
+    if unknown:
+        raise PlanError(f"plan: unknown field(s) {', '.join(sorted(unknown))}")
+    fence = doc.get("geofence") or {}
+    if not isinstance(fence, dict):
+        raise PlanError("geofence must be a mapping")
+    polygon = []
+    for k, vertex in enumerate(fence.get("polygon") or []):
+        if not (isinstance(vertex, list) and len(vertex) == 2 and all(isinstance(v, (int, float)) for v in vertex)):
+            raise PlanError(f"geofence vertex {k}: must be [lat, lon]")
+        polygon.append((float(vertex[0]), float(vertex[1])))
+    if polygon and len(polygon) < 3:
+        raise PlanError("geofence polygon needs at least 3 vertices")
+    geofence = Geofence(tuple(polygon), _num(fence, "max_altitude", "geofence", 0.0),
+                        _num(fence, "max_distance", "geofence", 0.0))
+    return Plan(tuple(_item_from_yaml(item, k) for k, item in enumerate(doc["items"])), geofence,
+                str(doc.get("name", "plan")), _num(doc, "cruise_speed", "plan", 0.0), _num(doc, "rtl_altitude", "plan", 0.0))
+
+
+# MAVLink command ids used by QGroundControl plans
+_QGC = {22: "takeoff", 16: "waypoint", 19: "loiter", 17: "loiter", 21: "land", 20: "rtl", 178: "change_speed",
+        206: "camera_distance", 2000: "camera_start", 2001: "camera_stop", 203: "camera_capture"}
+
+
+def plan_from_qgc_text(text: str) -> Plan:
+    """QGroundControl `.plan` (JSON): simple mission items, inclusion polygon geofence."""
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise PlanError(f"malformed .plan JSON at line {exc.lineno}") from None
+    if not isinstance(doc, dict) or doc.get("fileType") != "Plan" or not isinstance(doc.get("mission"), dict):
+        raise PlanError("not a QGroundControl .plan file (fileType 'Plan' with a 'mission')")
+    mission = doc["mission"]
+    items = []
+    for k, raw in enumerate(mission.get("items") or []):
+        where = f"item {k}"
+        if not isinstance(raw, dict) or raw.get("type") != "SimpleItem":
+            raise PlanError(f"{where}: only SimpleItem is supported (got {raw.get('type') if isinstance(raw, dict) else raw!r})")
+        command = raw.get("command")
+        kind = _QGC.get(command)
+        if kind is None:
+            raise PlanError(f"{where}: unsupported MAVLink command {command}")
+        params = raw.get("params")
+        if not isinstance(params, list) or len(params) != 7:
+            raise PlanError(f"{where}: 'params' must hold 7 values")
+        p = [NAN if v is None else float(v) for v in params]
+        if raw.get("frame") not in (3, 0, 2):  # relative-altitude global (3), global (0), mission (2)
+            raise PlanError(f"{where}: frame {raw.get('frame')} not supported (use relative altitude, 3)")
+        yaw = math.radians(90.0 - p[3]) if math.isfinite(p[3]) else NAN  # NED compass → ENU
+        if kind == "takeoff":
+            items.append(Item(kind, LOCAL, NAN, NAN, p[6]))
+        elif kind in ("waypoint", "loiter", "land"):
+            hold = p[0] if kind in ("waypoint", "loiter") and math.isfinite(p[0]) else 0.0
+            radius = p[1] if kind == "waypoint" and math.isfinite(p[1]) and p[1] > 0 else 1.0
+            if kind == "land" and (p[4] == 0.0 and p[5] == 0.0):
+                items.append(Item(kind))
+            else:
+                items.append(Item(kind, GLOBAL, p[4], p[5], p[6] if kind != "land" else 0.0, radius, hold, yaw))
+        elif kind == "change_speed":
+            items.append(Item(kind, speed=p[1]))
+        elif kind == "camera_distance":
+            items.append(Item(kind, camera_distance=p[0]))
+        else:
+            items.append(Item(kind))
+    polygon: list[tuple[float, float]] = []
+    fence = doc.get("geoFence") or {}
+    for poly in fence.get("polygons") or []:
+        if poly.get("inclusion", True) and not polygon:
+            polygon = [(float(v[0]), float(v[1])) for v in poly.get("polygon", [])]
+    return Plan(tuple(items), Geofence(tuple(polygon)), "qgc-plan", float(mission.get("cruiseSpeed") or 0.0))
+
+
+def load_plan(path: str | Path) -> Plan:
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise PlanError(f"cannot read {path}: {exc.strerror}") from None
+    return plan_from_qgc_text(text) if path.suffix == ".plan" else plan_from_yaml_text(text)

@@ -1,0 +1,59 @@
+"""Mission executor flying the example survey in the deterministic closed loop (plant + core)."""
+
+import math
+from pathlib import Path
+
+import yaml
+
+from c4d_gnc import quat
+from c4d_gnc.airframe import default_airframe_path, load_airframe
+from c4d_gnc.geodesy import GeoOrigin
+from c4d_gnc.gnc import Command, Landed, Level, Request, Setpoint
+from c4d_mission.executor import MissionExecutor, MissionStatus, Vehicle
+from c4d_mission.plan import load_plan
+from c4d_mission.validation import local_point, validate
+from c4d_sim.closed_loop import ClosedLoop
+
+ROOT = Path(__file__).resolve().parents[3]
+HOME = GeoOrigin(43.5629, 1.4815, 146.0)
+REQUESTS = {"takeoff": Command.TAKEOFF, "goto": Command.GOTO, "land": Command.LAND}
+
+
+def fly(plan, timeout=240.0):
+    config = yaml.safe_load((default_airframe_path("quad_x").parent.parent / "core.yaml").read_text())["executive"]
+    loop = ClosedLoop(load_airframe(default_airframe_path("quad_x")), config, seed=3)
+    executor = MissionExecutor()
+    executor.load(plan, HOME)
+    assert executor.start() == ""
+    reached = {}
+    dt = 0.02
+    while loop.t < timeout and executor.status == MissionStatus.ACTIVE:
+        s, out = loop.plant.state, loop.core.out
+        vehicle = Vehicle(s.position, out.armed, out.landed not in (Landed.ON_GROUND,), int(out.nav),
+                          quat.yaw_of(s.orientation))
+        result = executor.step(loop.t, dt, vehicle)
+        for name, value in result.requests:
+            ok, reason = loop.core.request(Request(REQUESTS[name], altitude=value))
+            assert ok, (name, reason)
+        if result.setpoint is not None:
+            position, velocity, yaw = result.setpoint
+            loop.core.inputs.setpoint = Setpoint(loop.t, Level.POSITION, position, velocity, yaw=yaw)
+        for k in result.reached:
+            reached[k] = s.position
+        loop.run(dt)
+    return loop, executor, reached
+
+
+def test_survey_completes_every_waypoint_within_acceptance_and_lands_home():
+    plan = load_plan(ROOT / "missions" / "survey.yaml")
+    assert validate(plan, HOME).ok
+    loop, executor, reached = fly(plan)
+    assert executor.status == MissionStatus.COMPLETED, (executor.current, executor.status)
+    for k, item in enumerate(plan.items):
+        if item.type == "waypoint":
+            target = local_point(item, HOME)
+            assert math.dist(reached[k], target) <= item.acceptance_radius, (k, reached[k], target)
+    assert not loop.core.out.armed and loop.plant.state.position[2] < 0.05
+    assert math.hypot(*loop.plant.state.position[:2]) < 1.0  # back home
+    assert executor.camera["mode"] == "off" and executor.camera["distance"] == 5
+    assert loop.executive.profiler.overruns_total == 0

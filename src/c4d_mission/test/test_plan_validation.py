@@ -1,0 +1,78 @@
+"""Plan files and validation: YAML and QGroundControl formats, item-by-item rejections."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from c4d_gnc.geodesy import GeoOrigin
+from c4d_mission.plan import PlanError, load_plan, plan_from_qgc_text, plan_from_yaml_text
+from c4d_mission.validation import VehicleLimits, validate
+
+ROOT = Path(__file__).resolve().parents[3]
+HOME = GeoOrigin(43.5629, 1.4815, 146.0)
+
+
+def test_example_survey_is_valid():
+    plan = load_plan(ROOT / "missions" / "survey.yaml")
+    result = validate(plan, HOME, endurance_s=1200)
+    assert result.ok, result.errors
+    assert [i.type for i in plan.items].count("waypoint") == 6
+    assert result.path_length > 100 and 30 < result.duration < 200
+
+
+def test_outside_geofence_too_high_and_too_far_are_rejected_item_by_item():
+    plan = load_plan(ROOT / "missions" / "survey.yaml")
+    text = (ROOT / "missions" / "survey.yaml").read_text()
+    bad = text.replace("{type: waypoint, east: 20, north: 20, alt: 8", "{type: waypoint, east: 200, north: 20, alt: 8")
+    bad = bad.replace("{type: waypoint, east: 0, north: 30, alt: 8", "{type: waypoint, east: 0, north: 30, alt: 50")
+    result = validate(plan_from_yaml_text(bad), HOME)
+    assert any(e.startswith("item 4: leg leaves the geofence") for e in result.errors)
+    assert any(e.startswith("item 4:") and "exceeds the geofence's 120 m" in e for e in result.errors)
+    assert any(e.startswith("item 6: altitude 50 m above the maximum 30 m") for e in result.errors)
+    assert validate(plan, HOME).ok  # the original is untouched
+
+
+def test_endurance_and_limits():
+    plan = load_plan(ROOT / "missions" / "survey.yaml")
+    assert any("exceeds 80 %" in e for e in validate(plan, HOME, endurance_s=60).errors)
+    fast = plan_from_yaml_text("items:\n  - {type: takeoff, altitude: 5}\n  - {type: change_speed, speed: 20}\n"
+                               "  - {type: land}\n")
+    assert any("speed 20 m/s above" in e for e in validate(fast, HOME, VehicleLimits(max_speed=8)).errors)
+    early = plan_from_yaml_text("items:\n  - {type: waypoint, east: 1, north: 1, alt: 5}\n")
+    assert any("before any take-off" in e for e in validate(early, HOME).errors)
+
+
+@pytest.mark.parametrize("text,message", [
+    ("items: [", "malformed YAML"),
+    ("name: x\n", "needs an 'items' list"),
+    ("items:\n  - {type: teleport}\n", "unknown item type 'teleport'"),
+    ("items:\n  - {type: waypoint, alt: 5}\n", "needs lat/lon or east/north"),
+    ("items:\n  - {type: waypoint, east: 1, north: 2, alt: .nan}\n", "must be a finite number"),
+    ("items:\n  - {type: takeoff, altitude: 5, colour: red}\n", "unknown field(s) colour"),
+    ("geofence: {polygon: [[1, 2], [3, 4]]}\nitems: []\n", "at least 3 vertices"),
+])
+def test_malformed_plans_say_why(text, message):
+    with pytest.raises(PlanError) as err:
+        plan_from_yaml_text(text)
+    assert message in str(err.value)
+
+
+def test_qgroundcontrol_plan_import():
+    doc = {"fileType": "Plan", "version": 1, "groundStation": "QGroundControl",
+           "geoFence": {"polygons": [{"inclusion": True, "polygon": [[43.5625, 1.481], [43.5625, 1.4823],
+                                                                       [43.56345, 1.4823], [43.56345, 1.481]]}]},
+           "mission": {"cruiseSpeed": 4, "items": [
+               {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, None, 43.5629, 1.4815, 10]},
+               {"type": "SimpleItem", "command": 16, "frame": 3, "params": [2, 1.5, 0, None, 43.5630, 1.4816, 10]},
+               {"type": "SimpleItem", "command": 206, "frame": 2, "params": [5, 0, 1, 0, 0, 0, 0]},
+               {"type": "SimpleItem", "command": 20, "frame": 2, "params": [0, 0, 0, 0, 0, 0, 0]}]}}
+    plan = plan_from_qgc_text(json.dumps(doc))
+    assert [i.type for i in plan.items] == ["takeoff", "waypoint", "camera_distance", "rtl"]
+    assert plan.items[1].hold == 2 and plan.items[1].acceptance_radius == 1.5 and plan.cruise_speed == 4
+    assert len(plan.geofence.polygon) == 4 and validate(plan, HOME).ok
+    doc["mission"]["items"].append({"type": "ComplexItem", "complexItemType": "survey"})
+    with pytest.raises(PlanError, match="item 4: only SimpleItem"):
+        plan_from_qgc_text(json.dumps(doc))
+    with pytest.raises(PlanError, match="not a QGroundControl"):
+        plan_from_qgc_text("{}")
