@@ -87,7 +87,10 @@ class MissionExecutor:
         self._tracker: LegTracker | None = None
         self._hold_until = 0.0
         self._yaw = 0.0
-        self._flown = 0.0
+        self.retries = 0
+        self.last_error = ""
+        self._now = 0.0
+        self._retry_at = -math.inf
 
     # ------------------------------------------------------------------ control
     def load(self, plan: Plan, home: GeoOrigin) -> None:
@@ -119,6 +122,17 @@ class MissionExecutor:
         self.status, self._phase = MissionStatus.ACTIVE, "start"
         return ""
 
+    def request_rejected(self, name: str, reason: str, max_retries: int = 10) -> None:
+        """The core refused a request (e.g. inputs not fresh yet): retry the item, abort after
+        `max_retries` refusals so a mission never waits forever."""
+        self.retries += 1
+        self.last_error = f"core refused {name}: {reason}"
+        if self.retries > max_retries:
+            self.abort()
+            return
+        self._phase, self._tracker = "start", None
+        self._retry_at = self._now + 1.0  # give the vehicle a second before asking again
+
     def abort(self) -> None:
         if self.status in (MissionStatus.ACTIVE, MissionStatus.PAUSED):
             self.status = MissionStatus.ABORTED
@@ -134,7 +148,8 @@ class MissionExecutor:
     # ------------------------------------------------------------------ execution
     def step(self, now: float, dt: float, v: Vehicle) -> Output:
         out = Output()
-        if self.status != MissionStatus.ACTIVE or self.plan is None or self.home is None:
+        self._now = now
+        if self.status != MissionStatus.ACTIVE or self.plan is None or self.home is None or now < self._retry_at:
             return out
         if self.current >= len(self.plan.items):
             self.status = MissionStatus.COMPLETED
@@ -171,6 +186,7 @@ class MissionExecutor:
         return self._next(out)
 
     def _next(self, out: Output) -> Output:
+        self.retries = 0
         self.last_reached = self.current
         out.reached.append(self.current)
         self.current += 1

@@ -1,0 +1,129 @@
+"""Mission over the whole graph in real time: upload (bad plans rejected, active plan kept),
+wrong-state commands refused, then the example survey flown to completion and landed."""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import pytest
+from ament_index_python.packages import get_package_prefix
+
+from c4d_gnc.geodesy import GeoOrigin
+
+ROOT = Path(__file__).resolve().parent.parent
+SIM_HOME = GeoOrigin(43.5629, 1.4815, 146.0)
+NODES = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "navigation", []),
+         ("c4d_gnc", "core", ["--ros-args", "-p", "rt_priority:=50"]), ("c4d_mission", "mission", [])]
+
+
+def exe(package, name):
+    return str(Path(get_package_prefix(package)) / "lib" / package / name)
+
+
+@pytest.fixture(scope="module")
+def graph(module_processes, ros_domain_id):
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    procs = {name: module_processes.spawn(name, [exe(pkg, name), *args]) for pkg, name, args in NODES}
+    context = Context()
+    rclpy.init(context=context, domain_id=ros_domain_id)
+    node = rclpy.create_node("mission_test", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    yield node, executor, procs, module_processes
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown(context=context)
+
+
+def test_survey_mission(graph):
+    from nav_msgs.msg import Odometry
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    from c4d_interfaces.msg import MissionState, VehicleState, VehicleStatus
+    from c4d_interfaces.srv import DownloadMission, MissionControl, UploadMission, VehicleCommand
+    from c4d_mission.plan import load_plan, plan_from_yaml_text
+    from c4d_mission.ros_plan import plan_to_msg
+    from c4d_mission.validation import local_point
+
+    node, executor, procs, group = graph
+    best = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    world = {"truth": None, "state": None, "status": None, "mission": None, "reached": {}}
+
+    def on_mission(m):
+        world["mission"] = m
+        if m.last_reached_item >= 0 and m.last_reached_item not in world["reached"] and world["truth"] is not None:
+            world["reached"][m.last_reached_item] = world["truth"]
+
+    node.create_subscription(Odometry, "sim/ground_truth",
+                             lambda m: world.__setitem__("truth", (m.pose.pose.position.x, m.pose.pose.position.y,
+                                                                   m.pose.pose.position.z)), best)
+    node.create_subscription(VehicleState, "navigation/state", lambda m: world.__setitem__("state", m), best)
+    node.create_subscription(VehicleStatus, "vehicle/status", lambda m: world.__setitem__("status", m), latched)
+    node.create_subscription(MissionState, "mission/state", on_mission, latched)
+    clients = {name: node.create_client(t, f"mission/{name}") for name, t in
+               (("upload", UploadMission), ("download", DownloadMission), ("control", MissionControl))}
+    vehicle = node.create_client(VehicleCommand, "vehicle/command")
+
+    def spin(seconds, until=None):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.01)
+            if until is not None and until():
+                return True
+            for name, proc in procs.items():
+                assert proc.poll() is None, f"{name} died:\n{group.log_of(proc)}"
+        return until is None
+
+    def call(client, request):
+        assert client.wait_for_service(timeout_sec=30)
+        future = client.call_async(request)
+        assert spin(15, future.done)
+        return future.result()
+
+    ready = VehicleState.VALID_ORIGIN | VehicleState.VALID_POSITION_XY
+    assert spin(40, lambda: world["state"] is not None and world["state"].valid & ready == ready)
+    survey = load_plan(ROOT / "missions" / "survey.yaml")
+    outside = plan_from_yaml_text((ROOT / "missions" / "survey.yaml").read_text().replace("east: 20, north: 20",
+                                                                                          "east: 300, north: 20"))
+    # bad plan, nothing loaded: rejected with the reason; start without a plan: refused
+    reply = call(clients["upload"], UploadMission.Request(plan=plan_to_msg(outside)))
+    assert not reply.accepted and any(e.startswith("item 4: leg leaves the geofence") for e in reply.errors)
+    assert not call(clients["download"], DownloadMission.Request()).has_plan
+    reply = call(clients["control"], MissionControl.Request(action=MissionControl.Request.ACTION_START))
+    assert reply.result == MissionControl.Response.RESULT_DENIED and "no plan" in reply.message
+    # good plan accepted; a later bad upload leaves it in place
+    reply = call(clients["upload"], UploadMission.Request(plan=plan_to_msg(survey)))
+    assert reply.accepted and reply.plan_id > 0, reply.errors
+    assert not call(clients["upload"], UploadMission.Request(plan=plan_to_msg(outside))).accepted
+    kept = call(clients["download"], DownloadMission.Request())
+    assert kept.has_plan and kept.plan.plan_id == reply.plan_id and len(kept.plan.items) == len(survey.items)
+    # commands in the wrong state are refused with a result code
+    land = call(vehicle, VehicleCommand.Request(command=VehicleCommand.Request.CMD_LAND))
+    assert land.result == VehicleCommand.Response.RESULT_DENIED and "not armed" in land.message
+    pause = call(clients["control"], MissionControl.Request(action=MissionControl.Request.ACTION_PAUSE))
+    assert pause.result == MissionControl.Response.RESULT_DENIED
+    # fly it
+    start = call(clients["control"], MissionControl.Request(action=MissionControl.Request.ACTION_START))
+    assert start.result == MissionControl.Response.RESULT_ACCEPTED, start.message
+    assert spin(180, lambda: world["mission"] is not None and world["mission"].state == MissionState.STATE_COMPLETED), \
+        (world["mission"], group.log_of(procs["mission"])[-2000:])
+    assert spin(10, lambda: world["status"] is not None and not world["status"].armed)
+    origin = world["state"].origin
+    home = GeoOrigin(origin.latitude, origin.longitude, origin.altitude)
+    misses = []
+    for k, item in enumerate(survey.items):
+        if item.type != "waypoint":
+            continue
+        assert k in world["reached"], f"waypoint {k} never reported reached"
+        truth = home.to_enu(*SIM_HOME.to_geodetic(*world["reached"][k]))  # ground truth in the mission frame
+        miss = math.dist(truth, local_point(item, home))
+        misses.append(miss)
+        assert miss <= item.acceptance_radius + 0.3, (k, miss)  # + the estimator's error (~0.15 m RMS)
+    print(f"\nsurvey: {len(misses)} waypoints, true distance at 'reached' max {max(misses):.2f} m")
+    assert world["truth"][2] < 0.05
