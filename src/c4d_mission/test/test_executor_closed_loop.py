@@ -57,3 +57,21 @@ def test_survey_completes_every_waypoint_within_acceptance_and_lands_home():
     assert math.hypot(*loop.plant.state.position[:2]) < 1.0  # back home
     assert executor.camera["mode"] == "off" and executor.camera["distance"] == 5
     assert loop.executive.profiler.overruns_total == 0
+
+
+def test_refused_requests_are_retried_then_the_mission_aborts():
+    from c4d_mission.plan import Item, Plan
+
+    executor = MissionExecutor()
+    executor.load(Plan((Item("takeoff", z=5.0),)), HOME)
+    executor.start()
+    grounded = Vehicle((0.0, 0.0, 0.0), False, False, 0)
+    assert executor.step(0.0, 0.02, grounded).requests == [("takeoff", 5.0)]
+    last = 0.0  # time of the step that sent the refused request
+    for _ in range(10):
+        executor.request_rejected("takeoff", "navigation state is stale")
+        assert executor.step(last + 0.5, 0.02, grounded).requests == []  # waits a second between attempts
+        last += 1.01
+        assert executor.step(last, 0.02, grounded).requests == [("takeoff", 5.0)]
+    executor.request_rejected("takeoff", "navigation state is stale")
+    assert executor.status == MissionStatus.ABORTED and "stale" in executor.last_error
