@@ -16,6 +16,9 @@
 set -Eeuo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+if [ -n "${C4D_ROOT:-}" ] && [ "$C4D_ROOT" != "$ROOT" ]; then
+    unset C4D_VENV  # inherited from another checkout's env.sh: never borrow its venv
+fi
 VENV=${C4D_VENV:-$ROOT/.venv}
 LOGDIR=$ROOT/log/setup
 REQUIREMENTS=$ROOT/requirements.txt

@@ -16,5 +16,10 @@ setup(
     maintainer_email="maintainers@c4d.dev",
     description="c4d mission management: plans, validation, command executor, waypoint guidance",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["mission = c4d_mission.mission_node:main"]},
+    entry_points={
+        "console_scripts": [
+            "mission = c4d_mission.mission_node:main",
+            "payload = c4d_mission.payload_node:main",
+        ]
+    },
 )

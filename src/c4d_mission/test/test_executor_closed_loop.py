@@ -10,6 +10,7 @@ from c4d_gnc.airframe import default_airframe_path, load_airframe
 from c4d_gnc.geodesy import GeoOrigin
 from c4d_gnc.gnc import Command, Landed, Level, Request, Setpoint
 from c4d_mission.executor import MissionExecutor, MissionStatus, Vehicle
+from c4d_mission.payload import CameraTrigger
 from c4d_mission.plan import load_plan
 from c4d_mission.validation import local_point, validate
 from c4d_sim.closed_loop import ClosedLoop
@@ -19,12 +20,23 @@ HOME = GeoOrigin(43.5629, 1.4815, 146.0)
 REQUESTS = {"takeoff": Command.TAKEOFF, "goto": Command.GOTO, "land": Command.LAND}
 
 
+def point_along(path, s):
+    """The point at arc length s along a horizontal polyline."""
+    for a, b in zip(path, path[1:], strict=False):
+        length = math.dist(a, b)
+        if s <= length:
+            return (a[0] + (b[0] - a[0]) * s / length, a[1] + (b[1] - a[1]) * s / length)
+        s -= length
+    return path[-1]
+
+
 def fly(plan, timeout=240.0):
     config = yaml.safe_load((default_airframe_path("quad_x").parent.parent / "core.yaml").read_text())["executive"]
     loop = ClosedLoop(load_airframe(default_airframe_path("quad_x")), config, seed=3)
     executor = MissionExecutor()
     executor.load(plan, HOME)
     assert executor.start() == ""
+    trigger, captures = CameraTrigger(), []
     reached = {}
     dt = 0.02
     while loop.t < timeout and executor.status == MissionStatus.ACTIVE:
@@ -40,7 +52,9 @@ def fly(plan, timeout=240.0):
             loop.core.inputs.setpoint = Setpoint(loop.t, Level.POSITION, position, velocity, yaw=yaw)
         for k in result.reached:
             reached[k] = s.position
+        captures += trigger.update(plan, executor.current, executor.last_reached, s.position, HOME)
         loop.run(dt)
+    fly.captures = captures
     return loop, executor, reached
 
 
@@ -57,6 +71,13 @@ def test_survey_completes_every_waypoint_within_acceptance_and_lands_home():
     assert math.hypot(*loop.plant.state.position[:2]) < 1.0  # back home
     assert executor.camera["mode"] == "off" and executor.camera["distance"] == 5
     assert loop.executive.profiler.overruns_total == 0
+    # camera every 5 m along the six survey legs (90 m): 18 captures, each within 1 m of its planned spot
+    path = [(0.0, 0.0)] + [local_point(i, HOME)[:2] for i in plan.items if i.type == "waypoint"]
+    captures = fly.captures
+    assert len(captures) == 18 and all(c.trigger == "distance" for c in captures)
+    for k, c in enumerate(captures):
+        planned = point_along(path, 5.0 * (k + 1))
+        assert math.dist(c.position[:2], planned) <= 1.0, (k, c.position, planned)
 
 
 def test_refused_requests_are_retried_then_the_mission_aborts():
