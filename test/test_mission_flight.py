@@ -3,6 +3,7 @@ wrong-state commands refused, then the example survey flown to completion and la
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from pathlib import Path
@@ -15,7 +16,8 @@ from c4d_gnc.geodesy import GeoOrigin
 ROOT = Path(__file__).resolve().parent.parent
 SIM_HOME = GeoOrigin(43.5629, 1.4815, 146.0)
 NODES = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "navigation", []),
-         ("c4d_gnc", "core", ["--ros-args", "-p", "rt_priority:=50"]), ("c4d_mission", "mission", [])]
+         ("c4d_gnc", "core", ["--ros-args", "-p", "rt_priority:=50"]), ("c4d_mission", "mission", []),
+         ("c4d_mission", "payload", ["--ros-args", "-p", "output_dir:={captures}"])]
 
 
 def exe(package, name):
@@ -23,12 +25,15 @@ def exe(package, name):
 
 
 @pytest.fixture(scope="module")
-def graph(module_processes, ros_domain_id):
+def graph(module_processes, ros_domain_id, tmp_path_factory):
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
 
-    procs = {name: module_processes.spawn(name, [exe(pkg, name), *args]) for pkg, name, args in NODES}
+    captures = tmp_path_factory.mktemp("captures")
+    procs = {name: module_processes.spawn(name, [exe(pkg, name), *[a.format(captures=captures) for a in args]])
+             for pkg, name, args in NODES}
+    procs["captures_dir"] = captures
     context = Context()
     rclpy.init(context=context, domain_id=ros_domain_id)
     node = rclpy.create_node("mission_test", context=context)
@@ -44,13 +49,14 @@ def test_survey_mission(graph):
     from nav_msgs.msg import Odometry
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-    from c4d_interfaces.msg import MissionState, VehicleState, VehicleStatus
+    from c4d_interfaces.msg import CaptureEvent, MissionState, VehicleState, VehicleStatus
     from c4d_interfaces.srv import DownloadMission, MissionControl, UploadMission, VehicleCommand
     from c4d_mission.plan import load_plan, plan_from_yaml_text
     from c4d_mission.ros_plan import plan_to_msg
     from c4d_mission.validation import local_point
 
     node, executor, procs, group = graph
+    captures_dir = procs.pop("captures_dir")
     best = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     world = {"truth": None, "state": None, "status": None, "mission": None, "reached": {}}
@@ -66,6 +72,9 @@ def test_survey_mission(graph):
     node.create_subscription(VehicleState, "navigation/state", lambda m: world.__setitem__("state", m), best)
     node.create_subscription(VehicleStatus, "vehicle/status", lambda m: world.__setitem__("status", m), latched)
     node.create_subscription(MissionState, "mission/state", on_mission, latched)
+    captured: list = []
+    node.create_subscription(CaptureEvent, "payload/captures", captured.append,
+                             QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE))
     clients = {name: node.create_client(t, f"mission/{name}") for name, t in
                (("upload", UploadMission), ("download", DownloadMission), ("control", MissionControl))}
     vehicle = node.create_client(VehicleCommand, "vehicle/command")
@@ -125,5 +134,22 @@ def test_survey_mission(graph):
         miss = math.dist(truth, local_point(item, home))
         misses.append(miss)
         assert miss <= item.acceptance_radius + 0.3, (k, miss)  # + the estimator's error (~0.15 m RMS)
-    print(f"\nsurvey: {len(misses)} waypoints, true distance at 'reached' max {max(misses):.2f} m")
+    # camera every 5 m along the planned legs: 18 geotagged captures within 1 m of their planned spot
+    path = [(0.0, 0.0)] + [local_point(i, home)[:2] for i in survey.items if i.type == "waypoint"]
+    capture_misses = []
+    for k, c in enumerate(captured):
+        s, planned = 5.0 * (k + 1), None
+        for a, b in zip(path, path[1:], strict=False):
+            if s <= math.dist(a, b):
+                planned = (a[0] + (b[0] - a[0]) * s / math.dist(a, b), a[1] + (b[1] - a[1]) * s / math.dist(a, b))
+                break
+            s -= math.dist(a, b)
+        capture_misses.append(math.dist((c.position.x, c.position.y), planned))
+    assert len(captured) == 18 and max(capture_misses) <= 1.0, capture_misses
+    files = sorted(captures_dir.glob("captures_*.csv"))
+    assert len(files) == 1 and len(files[0].read_text().splitlines()) == 1 + 18
+    geojson = json.loads(files[0].with_suffix(".geojson").read_text())
+    assert len(geojson["features"]) == 18 and geojson["features"][0]["geometry"]["type"] == "Point"
+    print(f"\nsurvey: {len(misses)} waypoints, true distance at 'reached' max {max(misses):.2f} m; "
+          f"{len(captured)} captures, max {max(capture_misses):.2f} m from plan")
     assert world["truth"][2] < 0.05
