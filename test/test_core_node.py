@@ -15,20 +15,8 @@ CORE = Path(get_package_prefix("c4d_gnc")) / "lib" / "c4d_gnc" / "core"
 
 
 @pytest.fixture(scope="module")
-def ros(ros_domain_id):
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-
-    context = Context()
-    rclpy.init(context=context, domain_id=ros_domain_id)
-    node = rclpy.create_node("core_test", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    yield node, executor
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=context)
+def ros(ros_node):
+    return ros_node
 
 
 def spin_until(executor, predicate, timeout, every=None):

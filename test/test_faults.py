@@ -5,31 +5,14 @@ from __future__ import annotations
 
 import math
 import time
-from pathlib import Path
 
 import pytest
-from ament_index_python.packages import get_package_prefix
-
-
-def exe(package, name):
-    return str(Path(get_package_prefix(package)) / "lib" / package / name)
+from c4d_testing import installed_executable
 
 
 @pytest.fixture(scope="module")
-def ros(ros_domain_id):
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-
-    context = Context()
-    rclpy.init(context=context, domain_id=ros_domain_id)
-    node = rclpy.create_node("fault_test", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    yield node, executor
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=context)
+def ros(ros_node):
+    return ros_node
 
 
 def spin_until(executor, predicate, timeout):
@@ -60,8 +43,8 @@ def test_each_fault_raises_its_health_flag(ros, processes):
     from sensor_msgs.msg import BatteryState, NavSatFix
 
     node, executor = ros
-    sim = processes.spawn("sim", [exe("c4d_sim", "sim")])
-    processes.spawn("perception", [exe("c4d_gnc", "perception")])
+    sim = processes.spawn("sim", [installed_executable("c4d_sim", "sim")])
+    processes.spawn("perception", [installed_executable("c4d_gnc", "perception")])
     health: dict[str, str] = {}
 
     def on_health(msg):
@@ -114,7 +97,7 @@ def test_nan_and_out_of_range_samples_are_rejected_and_counted(ros, processes):
     from sensor_msgs.msg import Imu
 
     node, executor = ros
-    processes.spawn("perception", [exe("c4d_gnc", "perception")])
+    processes.spawn("perception", [installed_executable("c4d_gnc", "perception")])
     best = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
     out, reports = [], []
     pub = node.create_publisher(Imu, "sensors/imu", best)

@@ -9,11 +9,10 @@ from __future__ import annotations
 
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
-from ament_index_python.packages import get_package_prefix
+from c4d_testing import installed_executable
 
 from c4d_gnc.geodesy import GeoOrigin
 
@@ -22,26 +21,10 @@ NODES = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "nav
          ("c4d_gnc", "core", ["--ros-args", "-p", "rt_priority:=50"])]
 
 
-def exe(package, name):
-    return str(Path(get_package_prefix(package)) / "lib" / package / name)
-
-
 @pytest.fixture(scope="module")
-def graph(module_processes, ros_domain_id):
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-
-    procs = {name: module_processes.spawn(name, [exe(pkg, name), *args]) for pkg, name, args in NODES}
-    context = Context()
-    rclpy.init(context=context, domain_id=ros_domain_id)
-    node = rclpy.create_node("flight_test", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    yield node, executor, procs, module_processes
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=context)
+def graph(module_processes, ros_node):
+    procs = {name: module_processes.spawn(name, [installed_executable(pkg, name), *args]) for pkg, name, args in NODES}
+    return (*ros_node, procs, module_processes)
 
 
 def test_takeoff_hover_land(graph):

@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 import pytest
-from ament_index_python.packages import get_package_prefix
+from c4d_testing import installed_executable
 
 from c4d_gnc.geodesy import GeoOrigin
 
@@ -20,29 +20,14 @@ NODES = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "nav
          ("c4d_mission", "payload", ["--ros-args", "-p", "output_dir:={captures}"])]
 
 
-def exe(package, name):
-    return str(Path(get_package_prefix(package)) / "lib" / package / name)
-
-
 @pytest.fixture(scope="module")
-def graph(module_processes, ros_domain_id, tmp_path_factory):
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-
+def graph(module_processes, ros_node, tmp_path_factory):
     captures = tmp_path_factory.mktemp("captures")
-    procs = {name: module_processes.spawn(name, [exe(pkg, name), *[a.format(captures=captures) for a in args]])
+    procs = {name: module_processes.spawn(name, [installed_executable(pkg, name),
+                                                 *[a.format(captures=captures) for a in args]])
              for pkg, name, args in NODES}
     procs["captures_dir"] = captures
-    context = Context()
-    rclpy.init(context=context, domain_id=ros_domain_id)
-    node = rclpy.create_node("mission_test", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    yield node, executor, procs, module_processes
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=context)
+    return (*ros_node, procs, module_processes)
 
 
 def test_survey_mission(graph):

@@ -155,3 +155,30 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         red=True,
     )
     session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def installed_executable(package: str, name: str) -> str:
+    """<prefix>/lib/<package>/<name>, exactly where `ros2 run package name` looks."""
+    from ament_index_python.packages import get_package_prefix
+
+    return str(Path(get_package_prefix(package)) / "lib" / package / name)
+
+
+@pytest.fixture(scope="module")
+def ros_node(ros_domain_id):
+    """(node, executor) of an rclpy context private to this test module, in its domain."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    context = Context()
+    rclpy.init(context=context, domain_id=ros_domain_id)
+    node = rclpy.create_node("c4d_test", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    try:
+        yield node, executor
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)

@@ -33,7 +33,7 @@ from .gnc import Command, GncCore, Mode, Request
 from .ros_drain import Drainer
 
 RESULT_ACCEPTED, RESULT_TEMPORARILY_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED = 0, 1, 2, 3
-STATUS_PERIOD_S = 0.5
+STATUS_PERIOD_S = 0.2  # 5 Hz: also the heartbeat health watches
 HOUSEKEEPING_TICKS = 50
 
 

@@ -51,7 +51,9 @@ class SensorMonitor:
     _times: deque = field(default_factory=lambda: deque(maxlen=200))
     _recent: deque = field(default_factory=lambda: deque(maxlen=50))  # True = accepted
 
-    def accept(self, t: float, values: tuple, valid: bool) -> bool:
+    def accept(self, t: float, values: tuple, valid: bool, can_freeze: bool = True) -> bool:
+        """Count a sample; `can_freeze=False` for readings that are legitimately constant
+        (a range finder's ±inf on the ground or out of range)."""
         self._recent.append(valid)
         if not valid:
             self.rejected += 1
@@ -59,7 +61,7 @@ class SensorMonitor:
         self.accepted += 1
         self.last_time = t
         self._times.append(t)
-        if values == self._last_values:
+        if can_freeze and values == self._last_values:
             self._same += 1
         else:
             self._same = 0

@@ -3,7 +3,7 @@
 Subscribes sensors/{imu,gps,baro,mag,range_down} (sensor_msgs, best effort), rejects and
 counts NaN / out-of-range samples (they are never republished), applies the IMU calibration,
 and republishes each accepted sample unchanged in time on perception/{imu,gps,baro,mag,
-range_down}. Publishes perception/health (diagnostic_msgs/DiagnosticArray, 2 Hz): one status
+range_down}. Publishes perception/health (diagnostic_msgs/DiagnosticArray, 5 Hz): one status
 per sensor with its state (ok, stale, frozen, invalid, low rate), measured rate, counts, age.
 Parameters: gyro_offset, accel_offset, accel_scale (calibration, 3 values each),
 events_executor (default true).
@@ -11,6 +11,7 @@ events_executor (default true).
 
 from __future__ import annotations
 
+import math
 import sys
 
 from .perception import Health, ImuCalibration, SensorMonitor, valid_fix, valid_imu, valid_mag, valid_pressure, valid_range
@@ -85,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
             pubs["mag"].publish(msg)
 
     def on_range(msg: Range) -> None:
-        if monitors["range_down"].accept(now(), (msg.range,), valid_range(msg.range)):
+        if monitors["range_down"].accept(now(), (msg.range,), valid_range(msg.range), can_freeze=math.isfinite(msg.range)):
             pubs["range_down"].publish(msg)
 
     node.create_subscription(Imu, "sensors/imu", on_imu, qos)
@@ -113,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
             array.status.append(status)
         pub_health.publish(array)
 
-    node.create_timer(0.5, publish_health)
+    node.create_timer(0.2, publish_health)  # 5 Hz: also the heartbeat health watches
     return node_runtime.spin_node(node, events)
 
 

@@ -256,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
                 sp.acceleration.x = sp.acceleration.y = sp.acceleration.z = math.nan
                 pub_setpoint.publish(sp)
         key = (executor.plan.plan_id if executor.plan else 0, executor.status, executor.current, executor.last_reached)
-        if key != world["last_key"] or t - world["last_state_pub"] >= 0.5:
+        if key != world["last_key"] or t - world["last_state_pub"] >= 0.2:  # 5 Hz heartbeat for health
             pub_state.publish(state_msg())
             world["last_key"], world["last_state_pub"] = key, t
 

@@ -52,6 +52,7 @@ class CameraTrigger:
         self._plan_key: object = None
         self._legs: dict[int, tuple[float, Vec, Vec]] = {}  # item -> (arc length at leg start, a, b)
         self._next_s: float | None = None
+        self._last: tuple[float, Vec] | None = None  # (arc length, position) of the previous sample
         self._seen_reached = -1
         self._seen_capture_items: set[int] = set()
 
@@ -90,6 +91,7 @@ class CameraTrigger:
         if mode != "distance" or leg is None:
             if mode != "distance":
                 self._next_s = None
+            self._last = None
             return captures
         arc0, a, b = leg
         length = math.hypot(b[0] - a[0], b[1] - a[1])
@@ -99,9 +101,15 @@ class CameraTrigger:
         s = arc0 + min(max(along, 0.0), length)
         if self._next_s is None:  # mode just became active: first capture one spacing ahead
             self._next_s = arc0 + distance if along <= 0.0 else s + distance
+        last_s, last_pos = self._last if self._last is not None else (s, position)
         while s >= self._next_s - 1e-9:
-            captures.append(self._take("distance", position, current_item))
+            # geotag where the threshold was crossed (interpolated between the two samples), so a
+            # late or sparse state sample does not move the capture along the track
+            f = (self._next_s - last_s) / (s - last_s) if s > last_s else 1.0
+            at = tuple(a + min(max(f, 0.0), 1.0) * (b - a) for a, b in zip(last_pos, position, strict=True))
+            captures.append(self._take("distance", at, current_item))  # type: ignore[arg-type]
             self._next_s += distance
+        self._last = (s, position)
         return captures
 
     def _take(self, trigger: str, position: Vec, item: int) -> Capture:

@@ -21,8 +21,6 @@ from c4d_gnc.geodesy import GeoOrigin
 from .payload import CameraTrigger, CaptureLog, camera_mode
 from .plan import PlanError
 
-DECIMATE = 10  # navigation/state arrives at 500 Hz; 50 Hz is plenty for triggering (interpolated)
-
 
 def main(argv: list[str] | None = None) -> int:
     from c4d_gnc import node_runtime
@@ -42,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     pub_capture = node.create_publisher(CaptureEvent, "payload/captures", QoSProfile(depth=50,
                                                                                        reliability=ReliabilityPolicy.RELIABLE))
     pub_gimbal = node.create_publisher(Vector3Stamped, "payload/gimbal", 10)
-    world: dict = {"plan": None, "mission": None, "armed": False, "log": None, "n": 0, "trigger": CameraTrigger()}
+    world: dict = {"plan": None, "mission": None, "armed": False, "log": None, "gimbal_t": 0.0, "trigger": CameraTrigger()}
 
     def on_plan(msg) -> None:
         try:
@@ -59,9 +57,8 @@ def main(argv: list[str] | None = None) -> int:
         world["armed"] = msg.armed
 
     def on_state(msg) -> None:
-        world["n"] += 1
         mission, plan = world["mission"], world["plan"]
-        if world["n"] % DECIMATE or mission is None or plan is None or mission.plan_id != plan.plan_id:
+        if mission is None or plan is None or mission.plan_id != plan.plan_id:
             return
         if mission.state != MissionState.STATE_ACTIVE or not world["armed"]:
             return
@@ -77,7 +74,10 @@ def main(argv: list[str] | None = None) -> int:
         gimbal = Vector3Stamped()
         gimbal.header = msg.header
         gimbal.vector.y = -math.pi / 2 if mode != "off" else 0.0  # pitch down to nadir while surveying
-        pub_gimbal.publish(gimbal)
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        if t - world["gimbal_t"] >= 0.02:  # 50 Hz is plenty for a gimbal command
+            world["gimbal_t"] = t
+            pub_gimbal.publish(gimbal)
         for c in captures:
             lat, lon, alt = origin.to_geodetic(*c.position)
             event = CaptureEvent(index=c.index, mission_item=c.mission_item, file_name=f"img_{c.index:05d}.jpg",

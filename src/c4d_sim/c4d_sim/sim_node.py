@@ -201,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
         s = plant.state
         gust = (cfg["gust"] + extra_gust[0]) * 0.5 * (1 - math.cos(2 * math.pi * s.t / cfg["gust_period"]))
         plant.wind = (cfg["wind_mean"][0] + gust, cfg["wind_mean"][1], cfg["wind_mean"][2])
-        for _ in range(min(k - last_tick[0], 100)):  # ticks skipped after a stall are simulated too:
+        for _ in range(k - last_tick[0]):  # ticks skipped after a stall are simulated too, all of them:
             plant.step(dt, command["outputs"], command["armed"] and fresh)  # sim time stays wall time
         last_tick[0] = k
 
@@ -301,8 +301,9 @@ def main(argv: list[str] | None = None) -> int:
 
     def drain(k: int) -> None:
         drainer.drain()
-        if k % 100 == 0:
-            executor.spin_once(timeout_sec=0.0)  # parameter services (fault injection), 10 Hz
+        if k % 20 == 0:  # parameter services (fault injection) and graph events, 50 Hz
+            for _ in range(4):
+                executor.spin_once(timeout_sec=0.0)
 
     # plain sleeps (no spinning): the plant needs real time, not µs release precision
     executive = CyclicExecutive(schedule, tasks, MonotonicClock(spin_ns=0), name="sim", input_phase=drain,

@@ -1,0 +1,113 @@
+"""Failsafe policy: events → actions, with delays, most-severe-wins and no oscillation.
+
+`FailsafePolicy.from_yaml()` validates the policy file (one line naming the field on error).
+`FailsafeArbiter.update(now, active_events, in_air)` returns the action to request: an event
+counts once its condition has held for its `delay_s`; among the counted events the most severe
+action wins; the chosen action is latched and only ever escalates until `reset()` (called on
+disarm), so the vehicle never flips between, say, RTL and land as conditions flicker.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+from pathlib import Path
+
+import yaml
+
+
+class Action(IntEnum):  # VehicleStatus.FAILSAFE_* numbering
+    NONE = 0
+    WARN = 1
+    HOLD = 2
+    RTL = 3
+    LAND = 4
+    TERMINATE = 5
+
+
+EVENTS = ("gps_loss", "estimator_invalid", "battery_low", "battery_critical", "geofence_breach", "link_loss",
+          "node_dead", "executor_overrun")
+
+
+class PolicyError(ValueError):
+    pass
+
+
+@dataclass(frozen=True)
+class Rule:
+    action: Action
+    delay_s: float = 0.0
+    only_in_air: bool = True
+
+
+@dataclass(frozen=True)
+class FailsafePolicy:
+    rules: dict[str, Rule]
+    battery_low: float = 0.30
+    battery_critical: float = 0.15
+    node_timeout_s: float = 1.0
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> FailsafePolicy:
+        try:
+            doc = yaml.safe_load(Path(path).read_text())
+        except OSError as exc:
+            raise PolicyError(f"cannot read failsafe policy {path}: {exc.strerror}") from None
+        except yaml.YAMLError:
+            raise PolicyError(f"failsafe policy {path}: malformed YAML") from None
+        return cls.from_dict(doc)
+
+    @classmethod
+    def from_dict(cls, doc: object) -> FailsafePolicy:
+        if not isinstance(doc, dict) or not isinstance(doc.get("events"), dict):
+            raise PolicyError("failsafe policy: needs an 'events' mapping")
+        unknown = set(doc) - {"events", "battery_low_threshold", "battery_critical_threshold", "node_timeout_s"}
+        if unknown:
+            raise PolicyError(f"failsafe policy: unknown field(s) {', '.join(sorted(unknown))}")
+        rules = {}
+        for event, rule in doc["events"].items():
+            if event not in EVENTS:
+                raise PolicyError(f"failsafe policy: unknown event '{event}' (events: {', '.join(EVENTS)})")
+            if not isinstance(rule, dict) or str(rule.get("action", "")).upper() not in Action.__members__:
+                raise PolicyError(f"failsafe policy: events.{event}.action must be one of "
+                                  f"{', '.join(a.name.lower() for a in Action)}")
+            delay = rule.get("delay_s", 0.0)
+            if isinstance(delay, bool) or not isinstance(delay, (int, float)) or delay < 0:
+                raise PolicyError(f"failsafe policy: events.{event}.delay_s must be a number >= 0")
+            rules[event] = Rule(Action[str(rule["action"]).upper()], float(delay), bool(rule.get("only_in_air", True)))
+        low, critical = doc.get("battery_low_threshold", 0.30), doc.get("battery_critical_threshold", 0.15)
+        if not (isinstance(low, (int, float)) and isinstance(critical, (int, float)) and 0 < critical < low < 1):
+            raise PolicyError("failsafe policy: need 0 < battery_critical_threshold < battery_low_threshold < 1")
+        timeout = doc.get("node_timeout_s", 1.0)
+        if not isinstance(timeout, (int, float)) or timeout <= 0:
+            raise PolicyError("failsafe policy: node_timeout_s must be > 0")
+        return cls(rules, float(low), float(critical), float(timeout))
+
+
+@dataclass
+class FailsafeArbiter:
+    policy: FailsafePolicy
+    since: dict[str, float] = field(default_factory=dict)
+    action: Action = Action.NONE
+    reason: str = ""
+
+    def update(self, now: float, active: dict[str, str], in_air: bool) -> Action:
+        """`active`: event → human-readable detail for every condition true right now."""
+        for event in list(self.since):
+            if event not in active:
+                del self.since[event]
+        best, why = Action.NONE, ""
+        for event, detail in active.items():
+            start = self.since.setdefault(event, now)
+            rule = self.policy.rules.get(event)
+            if rule is None or (rule.only_in_air and not in_air) or now - start < rule.delay_s:
+                continue
+            if rule.action > best:
+                best, why = rule.action, f"{event}: {detail}"
+        if best > self.action:  # escalate only
+            self.action, self.reason = best, why
+        return self.action
+
+    def reset(self) -> None:
+        self.since.clear()
+        self.action, self.reason = Action.NONE, ""
