@@ -18,6 +18,8 @@ from pathlib import Path
 from .plan import Plan
 
 Vec = tuple[float, float, float]
+EARLY_M = 0.25  # a distance capture may fire this far before its spot: a vehicle easing into a waypoint
+# ends a hair short of the leg's end, and the last spot of a leg is often exactly there
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,14 @@ class CameraTrigger:
                 captures.append(self._take("command", position, k))
             elif kind in ("waypoint", "loiter") and camera_mode(plan, k)[0] == "on":
                 captures.append(self._take("waypoint", position, k))
+            elif kind in ("waypoint", "loiter") and camera_mode(plan, k)[0] == "distance" and k in self._legs \
+                    and self._next_s is not None:
+                # the leg is complete (the vehicle is at its waypoint): fire what is due up to its end
+                arc0, a, b = self._legs[k]
+                end = arc0 + math.hypot(b[0] - a[0], b[1] - a[1])
+                while self._next_s <= end + 1e-6:
+                    captures.append(self._take("distance", position, k))
+                    self._next_s += camera_mode(plan, k)[1]
         self._seen_reached = max(self._seen_reached, last_reached)
         mode, distance = camera_mode(plan, current_item)
         leg = self._legs.get(current_item)
@@ -102,10 +112,10 @@ class CameraTrigger:
         if self._next_s is None:  # mode just became active: first capture one spacing ahead
             self._next_s = arc0 + distance if along <= 0.0 else s + distance
         last_s, last_pos = self._last if self._last is not None else (s, position)
-        while s >= self._next_s - 1e-9:
+        while s >= self._next_s - EARLY_M:
             # geotag where the threshold was crossed (interpolated between the two samples), so a
             # late or sparse state sample does not move the capture along the track
-            f = (self._next_s - last_s) / (s - last_s) if s > last_s else 1.0
+            f = (min(self._next_s, s) - last_s) / (s - last_s) if s > last_s else 1.0
             at = tuple(a + min(max(f, 0.0), 1.0) * (b - a) for a, b in zip(last_pos, position, strict=True))
             captures.append(self._take("distance", at, current_item))  # type: ignore[arg-type]
             self._next_s += distance
