@@ -7,12 +7,12 @@ profiler is checked for overruns.
 
 from __future__ import annotations
 
+import functools
 import math
-import time
 
 import numpy as np
 import pytest
-from c4d_testing import installed_executable
+from c4d_testing import installed_executable, spin_for
 
 from c4d_gnc.geodesy import GeoOrigin
 
@@ -57,15 +57,7 @@ def test_takeoff_hover_land(graph):
     node.create_subscription(ExecutorStats, "gnc/executor_stats", rec["stats"].append, 10)
     client = node.create_client(VehicleCommand, "gnc/command")
 
-    def spin(seconds, until=None):
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.01)
-            if until is not None and until():
-                return True
-            for name, proc in procs.items():
-                assert proc.poll() is None, f"{name} died:\n{group.log_of(proc)}"
-        return until is None
+    spin = functools.partial(spin_for, executor, watch=(group, procs))
 
     def call(**fields):
         future = client.call_async(VehicleCommand.Request(**fields))

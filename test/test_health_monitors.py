@@ -4,11 +4,12 @@ failsafe action: the policy's events only act in the air)."""
 
 from __future__ import annotations
 
+import functools
 import os
 import signal
 import time
 
-from c4d_testing import installed_executable
+from c4d_testing import installed_executable, spin_for
 
 NODES = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "navigation", []),
          ("c4d_gnc", "core", []), ("c4d_mission", "mission", []), ("c4d_health", "health", [])]
@@ -29,13 +30,7 @@ def test_monitors_and_dead_node_detection(module_processes, ros_node):
     node.create_subscription(DiagnosticArray, "diagnostics", diagnostics.append, 10)
     params = node.create_client(SetParameters, "sim/set_parameters")
 
-    def spin(seconds, until=None):
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.01)
-            if until is not None and until():
-                return True
-        return until is None
+    spin = functools.partial(spin_for, executor)
 
     def active():
         return summary[-1]["active"].split(",") if summary and summary[-1]["active"] else []

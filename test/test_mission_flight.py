@@ -3,13 +3,13 @@ wrong-state commands refused, then the example survey flown to completion and la
 
 from __future__ import annotations
 
+import functools
 import json
 import math
-import time
 from pathlib import Path
 
 import pytest
-from c4d_testing import installed_executable
+from c4d_testing import installed_executable, spin_for
 
 from c4d_gnc.geodesy import GeoOrigin
 
@@ -64,15 +64,7 @@ def test_survey_mission(graph):
                (("upload", UploadMission), ("download", DownloadMission), ("control", MissionControl))}
     vehicle = node.create_client(VehicleCommand, "vehicle/command")
 
-    def spin(seconds, until=None):
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.01)
-            if until is not None and until():
-                return True
-            for name, proc in procs.items():
-                assert proc.poll() is None, f"{name} died:\n{group.log_of(proc)}"
-        return until is None
+    spin = functools.partial(spin_for, executor, watch=(group, procs))
 
     def call(client, request):
         assert client.wait_for_service(timeout_sec=30)

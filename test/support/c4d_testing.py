@@ -182,3 +182,19 @@ def ros_node(ros_domain_id):
         executor.shutdown()
         node.destroy_node()
         rclpy.shutdown(context=context)
+
+
+def spin_for(executor, seconds: float, until=None, watch: tuple[ProcessGroup, dict] | None = None) -> bool:
+    """Spin `executor` for up to `seconds`. With `until`, return True as soon as it holds (False
+    on timeout); without, spin the whole time and return True. `watch` = (group, {name: proc}):
+    fail at once, with the process log, if one of those processes dies meanwhile."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.01)
+        if until is not None and until():
+            return True
+        if watch is not None:
+            group, procs = watch
+            for name, proc in procs.items():
+                assert proc.poll() is None, f"{name} died:\n{group.log_of(proc)}"
+    return until is None
