@@ -153,7 +153,7 @@ class LinkStats:
     utilisation: float  # busy time / elapsed time
     queue_bytes: int  # now
     queue_max_bytes: int
-    queue_max_frames: int
+    queue_max_frames: int  # frames in the FIFO, the one on the wire included
     dropped: int
     method: str
     note: str
@@ -319,7 +319,7 @@ class TelemetryScheduler:
         self._queue.append((stream, data, tick))
         self._queued_bytes += len(data)
         self._queue_max_bytes = max(self._queue_max_bytes, self._occupancy(tick))
-        self._queue_max_frames = max(self._queue_max_frames, len(self._queue))
+        self._queue_max_frames = max(self._queue_max_frames, len(self._queue) + (self._link_free > tick))
 
     def _transmit(self, start: int) -> Transmission:
         stream, data, release = self._queue.popleft()
