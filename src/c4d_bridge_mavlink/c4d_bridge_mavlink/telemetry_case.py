@@ -15,9 +15,10 @@ status messages: MAVLink has no 8-byte IMU message).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
-from .signing import mavlink
-from .telemetry import frame_bytes
+from .signing import make_mavlink, mavlink
+from .telemetry import LinkBudget, Packer, TelemetryScheduler, frame_bytes
 
 PPRZLINK_OVERHEAD = 8  # Pprzlink v2 header + checksum bytes (thesis §3.3.2)
 CASE_BAUD = 57600
@@ -84,3 +85,27 @@ def case_message(msg_id: int) -> mavlink.MAVLink_message:
     lengths = dict(zip(cls.ordered_fieldnames, cls.array_lengths, strict=True))
     args = [_value(kind, lengths[name]) for name, kind in zip(cls.fieldnames, cls.fieldtypes, strict=True)]
     return cls(*args)
+
+
+def case_scheduler(method: str, pack: Packer, queue_bytes: int = CASE_QUEUE_BYTES) -> TelemetryScheduler:
+    """The case's 16 streams on a 57600-baud UART with phases by `method` (gcdplus, zero, paparazzi…),
+    in Table 3.3 order (the order Paparazzi's phase rule depends on)."""
+    scheduler = TelemetryScheduler(LinkBudget.serial(CASE_BAUD), pack, queue_bytes=queue_bytes, method=method)
+    for message in CASE:
+        scheduler.add_stream(message.msg_id, message.interval_us, partial(case_message, message.msg_id), name=message.mavlink)
+    return scheduler
+
+
+def simulate(method: str, seconds: float = 4.0, queue_bytes: int = CASE_QUEUE_BYTES) -> TelemetryScheduler:
+    """Run the case in simulated time (two hyperperiods by default: the steady state repeats after)."""
+    mav = make_mavlink(1, mavlink.MAV_COMP_ID_AUTOPILOT1)
+
+    def pack(msg: mavlink.MAVLink_message) -> bytes:
+        data = msg.pack(mav)
+        mav.seq = (mav.seq + 1) % 256
+        return data
+
+    scheduler = case_scheduler(method, pack, queue_bytes)
+    scheduler.start(0.0)
+    scheduler.advance(seconds)
+    return scheduler
