@@ -1,0 +1,1 @@
+"""c4d data management: flight recorder (rosbag2 MCAP), replay, repair, flight analysis."""

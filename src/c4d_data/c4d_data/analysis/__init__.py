@@ -1,0 +1,1 @@
+"""Flight analysis: data extraction from a recording, plots, HTML report."""
