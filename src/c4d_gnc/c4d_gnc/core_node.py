@@ -34,12 +34,10 @@ from .ros_drain import Drainer
 
 RESULT_ACCEPTED, RESULT_TEMPORARILY_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED = 0, 1, 2, 3
 STATUS_PERIOD_S = 0.2  # 5 Hz: also the heartbeat health watches
-HOUSEKEEPING_TICKS = 50
 
 
 def main(argv: list[str] | None = None) -> int:
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from rclpy.signals import SignalHandlerOptions
     from sensor_msgs.msg import Imu
@@ -119,15 +117,12 @@ def main(argv: list[str] | None = None) -> int:
     pub_status = node.create_publisher(VehicleStatus, "vehicle/status", latched)
     pub_stats = node.create_publisher(ExecutorStats, "gnc/executor_stats", stats_qos)
     pub_schedule = node.create_publisher(ScheduleTable, "gnc/schedule", latched)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
+    drainer.adopt_node_services()  # parameter services too: no executor spins this node
 
     last_status: dict[str, object] = {"key": None, "time": 0.0, "arm_ns": 0, "armed": False}
 
     def input_phase(k: int) -> None:
         drainer.drain()  # take what is queued, never wait (see ros_drain.py)
-        if k % HOUSEKEEPING_TICKS == 0:
-            executor.spin_once(timeout_sec=0.0)  # parameter services and graph events, 10 Hz
         core.inputs.now = clock_s()
 
     def status_task(k: int) -> None:
@@ -192,11 +187,8 @@ def main(argv: list[str] | None = None) -> int:
         now = clock_s()
         pub_actuators.publish(conv.actuator_msg(core.out, now, executive.tick))
         pub_status.publish(conv.status_msg(core.out, now, int(last_status["arm_ns"])))
-        end = time.monotonic() + 0.2  # let the last messages leave
-        while time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.02)
+        time.sleep(0.2)  # let the last messages leave
         node.get_logger().info("stopped: motors commanded to zero")
-        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

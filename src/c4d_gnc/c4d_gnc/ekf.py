@@ -38,6 +38,8 @@ class EkfConfig:
     mag_heading_noise: float = math.radians(3.0)
     mag_declination: float = 0.0  # [rad] of the local field (positive east)
     position_valid_s: float = 1.0  # a position fix younger than this keeps the position valid
+    gps_reset_after_s: float = 3.0  # after an outage this long, a fix the gate rejects resets the position
+    zero_velocity_sigma: float = 0.05  # [m/s] zero-velocity update while the vehicle stands on the ground
     home_fixes: int = 20  # GNSS fixes averaged to set home (the local frame's geodetic origin)
     heading_valid_s: float = 2.0
 
@@ -72,6 +74,7 @@ class NavigationEkf:
         self.last_gps = -math.inf
         self.last_mag = -math.inf
         self.rejected = {"gps": 0, "baro": 0, "mag": 0}
+        self.resets = 0  # position resets to GNSS after an outage
         self.accel_world = np.zeros(3)
         self.omega = np.zeros(3)
         self._align_acc: list[np.ndarray] = []
@@ -184,12 +187,39 @@ class NavigationEkf:
         z = np.asarray(self.origin.to_enu(latitude, longitude, altitude)) + self.v * max(0.0, age)
         H = np.zeros((3, 15))
         H[:, 0:3] = np.eye(3)
-        ok = self._update(H, z - self.p, np.diag([sigma_h**2, sigma_h**2, sigma_v**2]), self.cfg.gps_gate)
+        Rm = np.diag([sigma_h**2, sigma_h**2, sigma_v**2])
+        ok = self._update(H, z - self.p, Rm, self.cfg.gps_gate)
         if ok:
             self.last_gps = self.t
+        elif self.t - self.last_gps > self.cfg.gps_reset_after_s:
+            self._reset_position(z, Rm)
+            self.last_gps = self.t
+            ok = True
         else:
             self.rejected["gps"] += 1
         return ok
+
+    def _reset_position(self, z: np.ndarray, Rm: np.ndarray) -> None:
+        """GNSS is back after an outage and dead reckoning drifted beyond the gate: trust the fix
+        (PX4's EKF does the same), restart the velocity from rest with a wide uncertainty so the
+        next fixes re-estimate it, and drop the stale position/velocity correlations."""
+        self.resets += 1
+        self.p = z.copy()
+        self.v[:] = 0.0
+        self.P[0:6, :] = 0.0
+        self.P[:, 0:6] = 0.0
+        self.P[0:3, 0:3] = Rm
+        self.P[3:6, 3:6] = np.eye(3) * 25.0  # (5 m/s)²
+
+    def update_zero_velocity(self) -> bool:
+        """Zero-velocity update (the vehicle is known to stand still, e.g. disarmed on the
+        ground): bounds the dead-reckoning drift without GNSS and makes tilt and accelerometer
+        bias observable, so a vehicle that landed blind does not diverge while it waits."""
+        if not self.aligned:
+            return False
+        H = np.zeros((3, 15))
+        H[:, 3:6] = np.eye(3)
+        return self._update(H, -self.v, np.eye(3) * self.cfg.zero_velocity_sigma**2)
 
     def update_baro(self, pressure: float) -> bool:
         altitude = altitude_at_pressure(pressure)

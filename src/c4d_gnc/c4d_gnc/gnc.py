@@ -307,13 +307,14 @@ class GncCore:
     def _detect_landing(self, s: StateSample, dt: float) -> None:
         """Touchdown = thrust well below hover while either the range finder sees the ground
         within 0.2 m (for 0.5 s), or, without a range reading, the estimated velocity
-        (low-passed, τ 0.3 s, so estimator noise cannot reset the timer) is ~zero (for 1 s)."""
+        (low-passed, τ 0.3 s, so estimator noise cannot reset the timer) is ~zero (for 1 s) —
+        only its vertical part once the horizontal position is lost (GNSS loss → blind descent)."""
         hover_thrust = self.af.mass * GRAVITY
         alpha = min(1.0, dt / 0.3)
         self.landing_velocity = tuple(f + alpha * (v - f) for f, v in zip(self.landing_velocity, s.velocity, strict=True))
         vx, vy, vz = self.landing_velocity
         near_ground = math.isfinite(s.terrain_distance) and s.terrain_distance < 0.2
-        still = abs(vz) < 0.2 and math.hypot(vx, vy) < 0.5
+        still = abs(vz) < 0.2 and (math.hypot(vx, vy) < 0.5 or not s.valid_position)  # drifting xy says nothing
         if (near_ground or still) and self.thrust < 0.75 * hover_thrust:
             self.landed_timer += dt
         else:
@@ -348,6 +349,8 @@ class GncCore:
             v_sp = None
         if v_sp is not None:
             accel = self.translation.acceleration_setpoint(s.velocity, tuple(v_sp), sp.acceleration, dt)
+            if not s.valid_position:  # dead reckoning drifts: stay level horizontally, keep the baro-held height
+                accel = (0.0, 0.0, accel[2])
         else:
             accel = tuple(a if math.isfinite(a) else 0.0 for a in sp.acceleration)
         yaw = sp.yaw if math.isfinite(sp.yaw) else self.hold_yaw

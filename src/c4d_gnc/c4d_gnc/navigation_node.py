@@ -6,8 +6,10 @@ best effort) — so the state comes at IMU rate — and navigation/odometry (nav
 `odometry_rate_hz`, default 50 Hz to spare CPU). Validity flags follow the filter: attitude
 after alignment, heading while the magnetometer is fused, position/velocity while GNSS fixes
 keep coming, origin/global once home is set, terrain distance from a fresh range reading.
-A missing sensor clears its flags; nothing stops. Parameters: odometry_rate_hz,
-mag_declination_deg, events_executor.
+A missing sensor clears its flags; nothing stops. While the core reports the vehicle
+disarmed (vehicle/status), zero-velocity updates at 10 Hz keep a vehicle standing without GNSS
+from drifting; GNSS back after an outage resets the position if dead reckoning left the gate.
+Parameters: odometry_rate_hz, mag_declination_deg, events_executor.
 """
 
 from __future__ import annotations
@@ -19,16 +21,18 @@ import numpy as np
 
 from .ekf import EkfConfig, NavigationEkf, rotation_matrix
 
+ZUPT_EVERY = 50  # IMU samples between zero-velocity updates (10 Hz at 500 Hz)
+
 
 def main(argv: list[str] | None = None) -> int:
     from . import node_runtime
 
     rclpy = node_runtime.init(argv)
     from nav_msgs.msg import Odometry
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, Range
 
-    from c4d_interfaces.msg import VehicleState
+    from c4d_interfaces.msg import VehicleState, VehicleStatus
 
     from .ros_conversions import stamp_to_s
 
@@ -43,8 +47,12 @@ def main(argv: list[str] | None = None) -> int:
     state_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
     pub_state = node.create_publisher(VehicleState, "navigation/state", state_qos)
     pub_odom = node.create_publisher(Odometry, "navigation/odometry", state_qos)
-    memory = {"imu_t": None, "mag": None, "range": (math.inf, -math.inf), "odom_t": -math.inf, "omega": np.zeros(3),
+    memory = {"imu_count": 0, "on_ground": False,
+              "imu_t": None, "mag": None, "range": (math.inf, -math.inf), "odom_t": -math.inf, "omega": np.zeros(3),
               "alpha": np.zeros(3)}
+
+    def on_status(msg: VehicleStatus) -> None:
+        memory["on_ground"] = not msg.armed
 
     def on_mag(msg: MagneticField) -> None:
         f = msg.magnetic_field
@@ -78,6 +86,9 @@ def main(argv: list[str] | None = None) -> int:
             return  # first sample after a gap: no integration over an unknown interval
         dt = t - last
         ekf.predict(gyro, accel, dt)
+        memory["imu_count"] += 1
+        if memory["on_ground"] and memory["imu_count"] % ZUPT_EVERY == 0:
+            ekf.update_zero_velocity()  # disarmed = standing still: bounds drift while GNSS is out
         omega = np.asarray(gyro) - ekf.bg
         memory["alpha"] = 0.8 * memory["alpha"] + 0.2 * (omega - memory["omega"]) / dt
         memory["omega"] = omega
@@ -145,6 +156,8 @@ def main(argv: list[str] | None = None) -> int:
     node.create_subscription(FluidPressure, "perception/baro", on_baro, qos)
     node.create_subscription(MagneticField, "perception/mag", on_mag, qos)
     node.create_subscription(Range, "perception/range_down", on_range, qos)
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    node.create_subscription(VehicleStatus, "vehicle/status", on_status, latched)
     return node_runtime.spin_node(node, events)
 
 

@@ -26,6 +26,16 @@ class Drainer:
         srv = self.node.create_service(srv_type, name, handler)
         self.services.append((srv, handler))
 
+    def adopt_node_services(self) -> None:
+        """Serve the node's own services (rclpy's parameter services: get/set/list/describe)
+        from drain() too. Why: then no executor needs to spin this node at all — an executor
+        would also wake for every sample of the drained subscriptions (an EventsExecutor even
+        queues one event per sample, faster than a few spin_once calls can consume them)."""
+        known = {id(srv) for srv, _ in self.services}
+        for srv in self.node.services:
+            if id(srv) not in known:
+                self.services.append((srv, srv.callback))
+
     def drain(self, limit: int = 64) -> int:
         """Run the callbacks of everything queued (at most `limit` per entity); return how many."""
         handled = 0
@@ -47,3 +57,28 @@ class Drainer:
                 srv.send_response(handler(request, srv.srv_type.Response()), header)
                 handled += 1
         return handled
+
+
+class LatestSampler:
+    """The newest sample of a high-rate topic, for a node that only needs it at a low rate.
+
+    Why: an rclpy executor wakes up and runs Python for every sample it is subscribed to — a
+    500 Hz VehicleState costs a fifth of a core per subscribing node on these machines. The
+    subscription here lives on a hidden side node that no executor spins, with keep-last-1 QoS,
+    so DDS just overwrites the newest sample and `latest()` takes it (~µs) when the owner's
+    timer asks.
+    """
+
+    def __init__(self, side_node, msg_type, topic: str, qos) -> None:
+        self._sub = side_node.create_subscription(msg_type, topic, lambda msg: None, qos)
+        self._latest = None
+
+    def latest(self):
+        """The newest sample received so far (None before the first); never blocks."""
+        sub = self._sub
+        while True:
+            with sub.handle:
+                taken = sub.handle.take_message(sub.msg_type, sub.raw)
+            if taken is None:
+                return self._latest
+            self._latest = taken[0]

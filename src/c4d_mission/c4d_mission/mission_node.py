@@ -3,8 +3,9 @@
 Services: mission/upload (validate item by item, then replace the plan atomically),
 mission/download, mission/control (start, pause, resume, clear, set current), vehicle/command
 (arm / take-off with pre-arm checks: estimator valid with home set, every sensor healthy,
-battery above the reserve, inside the geofence; disarm, land, RTL, hold, set mode, go-to are
-forwarded to the core's gnc/command). Publishes guidance/setpoint (50 Hz while a mission or RTL
+battery above the reserve, inside the geofence; RTL and go-to (loiter at a global target,
+checked against the geofence unless `force`) are flown by the mission node; disarm, land,
+hold and set mode are forwarded to the core's gnc/command). Publishes guidance/setpoint (50 Hz while a mission or RTL
 flies), mission/state (on change and at 2 Hz) and mission/plan (latched). Mode changes reach
 the core only through its latched gnc/command interface.
 Parameters: plan_file (loaded and validated once home is known), min_battery (0.2),
@@ -17,10 +18,11 @@ import math
 import sys
 
 from c4d_gnc.geodesy import GeoOrigin
+from c4d_gnc.ros_drain import LatestSampler
 
 from .executor import MissionExecutor, MissionStatus, Vehicle
-from .plan import Item, Plan, PlanError, load_plan
-from .validation import VehicleLimits, leg_inside, validate
+from .plan import GLOBAL, Geofence, Item, Plan, PlanError, load_plan
+from .validation import VehicleLimits, check_goto, leg_inside, validate
 
 RESULT_ACCEPTED, RESULT_TEMPORARILY_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED, RESULT_FAILED = 0, 1, 2, 3, 4
 CORE = {"takeoff": 3, "goto": 8, "land": 4}
@@ -49,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     best = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
     executor = MissionExecutor()
-    rtl = MissionExecutor()  # RTL commanded outside a plan
+    rtl = MissionExecutor()  # RTL and go-to commanded outside a plan
     limits = VehicleLimits()
     world: dict = {"state": None, "status": None, "battery": None, "health": {}, "next_id": 1, "last_state_pub": 0.0,
                    "last_key": None}
@@ -128,6 +130,8 @@ def main(argv: list[str] | None = None) -> int:
                 send_core(VehicleCommand.Request.CMD_HOLD)
         elif a == MissionControl.Request.ACTION_RESUME:
             reason = executor.resume()
+            if not reason:
+                rtl.clear()  # a go-to interrupted the mission: the plan takes over again
         elif a == MissionControl.Request.ACTION_CLEAR:
             reason = "mission is active (pause it first)" if executor.status == MissionStatus.ACTIVE else ""
             if not reason:
@@ -179,6 +183,25 @@ def main(argv: list[str] | None = None) -> int:
             rtl.start()
             response.result, response.message = RESULT_ACCEPTED, "returning to launch"
             return response
+        if c == VehicleCommand.Request.CMD_GOTO:
+            origin, st, s = home(), world["status"], world["state"]
+            if origin is None or st is None or not st.armed or st.landed_state != VehicleStatus.LANDED_IN_AIR:
+                response.result, response.message = RESULT_DENIED, "go-to needs a flying vehicle (take off first)"
+                return response
+            t = request.target
+            target = Item("loiter", frame=GLOBAL, x=t.latitude, y=t.longitude, z=t.altitude, hold=math.inf,
+                          yaw=request.yaw)
+            fence = executor.plan.geofence if executor.plan else Geofence()
+            errors = check_goto(target, (s.position.x, s.position.y, s.position.z), fence, origin, limits)
+            if errors and not (request.force and "finite" not in errors[0] and "out of range" not in errors[0]):
+                response.result, response.message = RESULT_DENIED, "; ".join(errors)
+                return response
+            executor.pause()  # a running mission can be resumed after the go-to
+            rtl.load(Plan((target,), rtl_altitude=executor.plan.rtl_altitude if executor.plan else 0.0), origin)
+            rtl.start()
+            response.result, response.message = RESULT_ACCEPTED, "going to the target" + (
+                f" (forced: {'; '.join(errors)})" if errors else "")
+            return response
         if c in (VehicleCommand.Request.CMD_LAND, VehicleCommand.Request.CMD_HOLD, VehicleCommand.Request.CMD_DISARM):
             executor.pause() if c == VehicleCommand.Request.CMD_HOLD else executor.abort()
             rtl.clear()
@@ -204,7 +227,8 @@ def main(argv: list[str] | None = None) -> int:
         for status in msg.status:
             world["health"][status.hardware_id] = status.level
 
-    node.create_subscription(VehicleState, "navigation/state", on_state, best)
+    # 500 Hz: sampled at the 50 Hz tick instead of waking the executor for every sample
+    state_sampler = LatestSampler(rclpy.create_node("_mission_samples"), VehicleState, "navigation/state", best)
     node.create_subscription(VehicleStatus, "vehicle/status", lambda m: world.__setitem__("status", m), latched)
     node.create_subscription(BatteryState, "sensors/battery", lambda m: world.__setitem__("battery", m), best)
     node.create_subscription(DiagnosticArray, "perception/health", on_health, 10)
@@ -226,6 +250,9 @@ def main(argv: list[str] | None = None) -> int:
         return m
 
     def tick() -> None:
+        sample = state_sampler.latest()
+        if sample is not None and sample is not world["state"]:
+            on_state(sample)
         s, st = world["state"], world["status"]
         if s is None or st is None:
             return

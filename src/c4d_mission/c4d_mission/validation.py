@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from c4d_gnc.geodesy import GeoOrigin
 
-from .plan import GLOBAL, Plan
+from .plan import GLOBAL, Geofence, Item, Plan
 
 MAX_ITEMS = 500
 DEFAULT_MAX_ALTITUDE = 120.0  # [m] above home, the usual open-category ceiling
@@ -153,3 +153,25 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
     if airborne:
         warnings.append("plan: ends in the air (no land or RTL item)")
     return ValidationResult(tuple(errors), tuple(warnings), length, duration)
+
+
+def check_goto(target: Item, position: tuple[float, float, float], fence: Geofence, home: GeoOrigin,
+               limits: VehicleLimits = VehicleLimits()) -> list[str]:
+    """Why a go-to (DO_REPOSITION) from `position` (ENU, m) to `target` must be refused: the
+    same altitude, distance and polygon rules as a plan leg, applied to the one leg flown now."""
+    if not all(math.isfinite(v) for v in (target.x, target.y, target.z)):
+        return ["go-to target needs a finite position and altitude"]
+    if target.frame == GLOBAL and not (-90 <= target.x <= 90 and -180 <= target.y <= 180):
+        return ["go-to target latitude/longitude out of range"]
+    ceiling = min(limits.max_altitude, fence.max_altitude) if fence.max_altitude > 0 else limits.max_altitude
+    point = local_point(target, home)
+    errors = []
+    if not MIN_ALTITUDE <= point[2] <= ceiling:
+        errors.append(f"go-to altitude {point[2]:g} m outside [{MIN_ALTITUDE:g}, {ceiling:g}] m")
+    if fence.max_distance > 0 and math.hypot(point[0], point[1]) > fence.max_distance:
+        errors.append(f"go-to target {math.hypot(point[0], point[1]):.0f} m from home exceeds the geofence's "
+                      f"{fence.max_distance:g} m")
+    polygon = [home.to_enu(lat, lon, home.altitude)[:2] for lat, lon in fence.polygon]
+    if polygon and not leg_inside(position[:2], point[:2], polygon):
+        errors.append("go-to leg leaves the geofence polygon")
+    return errors

@@ -76,3 +76,23 @@ def test_qgroundcontrol_plan_import():
         plan_from_qgc_text(json.dumps(doc))
     with pytest.raises(PlanError, match="not a QGroundControl"):
         plan_from_qgc_text("{}")
+
+
+def test_goto_targets_follow_the_plan_rules():
+    from c4d_mission.plan import GLOBAL, Item
+    from c4d_mission.validation import check_goto
+
+    fence = load_plan(ROOT / "missions" / "survey.yaml").geofence
+
+    def goto(east, north, alt):
+        lat, lon, _ = HOME.to_geodetic(east, north, 0.0)
+        return Item("loiter", frame=GLOBAL, x=lat, y=lon, z=alt)
+
+    assert check_goto(goto(10, 10, 8), (0.0, 0.0, 5.0), fence, HOME) == []
+    assert any("exceeds the geofence's 120 m" in e for e in check_goto(goto(200, 0, 8), (0.0, 0.0, 5.0), fence, HOME))
+    assert any("leaves the geofence polygon" in e for e in check_goto(goto(200, 0, 8), (0.0, 0.0, 5.0), fence, HOME))
+    assert check_goto(goto(10, 10, 50), (0.0, 0.0, 5.0), fence, HOME) == ["go-to altitude 50 m outside [1, 30] m"]
+    assert check_goto(Item("loiter", frame=GLOBAL, x=float("nan"), y=1.0, z=5.0), (0.0, 0.0, 5.0), fence, HOME) == \
+        ["go-to target needs a finite position and altitude"]
+    assert check_goto(Item("loiter", frame=GLOBAL, x=95.0, y=1.0, z=5.0), (0.0, 0.0, 5.0), fence, HOME) == \
+        ["go-to target latitude/longitude out of range"]

@@ -66,6 +66,8 @@ class ClosedLoop:
         self.clock = FakeClock()
         self.trace = Trace()
         self.record_every = 1
+        self.position_lost_at: float | None = None  # set to a time to simulate GNSS loss from then on
+        self.range_lost = False  # no range finder reading (touchdown must be found from the velocity)
         core_functions = self.core.task_functions()
         functions: dict[str, Callable[[int], None]] = {}
         for task in self.schedule.tasks:
@@ -100,8 +102,14 @@ class ClosedLoop:
         if n.attitude:
             g = self.rng.gauss
             q = quat.mul(q, quat.from_euler(g(0, n.attitude), g(0, n.attitude), g(0, n.attitude)))
-        state = StateSample(now, self._noisy(s.position, n.position), self._noisy(s.velocity, n.velocity), q,
-                            self._noisy(s.angular_velocity, n.gyro), terrain_distance=s.position[2])
+        position, velocity = self._noisy(s.position, n.position), self._noisy(s.velocity, n.velocity)
+        if self.position_lost_at is not None:  # GNSS lost: dead-reckoned xy drifts at 0.5 m/s, z stays baro-aided
+            drift = 0.5 * (now - self.position_lost_at)
+            position = (position[0] + drift, position[1], position[2])
+            velocity = (velocity[0] + 0.5, velocity[1], velocity[2])
+        state = StateSample(now, position, velocity, q, self._noisy(s.angular_velocity, n.gyro),
+                            valid_position=self.position_lost_at is None,
+                            terrain_distance=math.nan if self.range_lost else s.position[2])
         inputs = self.core.inputs
         inputs.now, inputs.state = now, state
         inputs.gyro, inputs.gyro_stamp = state.angular_velocity, now

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from c4d_gnc import quat
 from c4d_gnc.airframe import GRAVITY, Airframe
 
+GROUND_LEVELING_TAU_S = 0.05  # [s] how fast the ground levels a vehicle that touched down tilted
+
 Vec = tuple[float, float, float]
 
 
@@ -77,14 +79,16 @@ class MultirotorPlant:
         )
         px, py, pz = s.position
         if s.on_ground and acc[2] <= 0.0:
-            # resting on the ground: level, still, heading kept. The accelerometer sees the
-            # velocity it loses in this step (the contact impulse), so an inertial estimator
-            # integrating it stays consistent with the stop.
-            yaw = quat.yaw_of(s.orientation)
-            s.orientation = quat.from_euler(0.0, 0.0, yaw)
+            # resting on the ground: still, heading kept, and the ground torque levels a tilted
+            # touchdown within ~GROUND_LEVELING_TAU_S at a rate the gyro reports (an instant snap
+            # would be invisible to the gyro and corrupt an inertial estimator's attitude). The
+            # accelerometer sees the velocity lost in this step (the contact impulse), so an
+            # estimator integrating it stays consistent with the stop.
+            w = _leveling_rate(s.orientation, max(GROUND_LEVELING_TAU_S, dt))
+            s.orientation = quat.integrate(s.orientation, w, dt)
             stop = (-vx / dt, -vy / dt, -vz / dt)
             s.velocity = (0.0, 0.0, 0.0)
-            s.angular_velocity = (0.0, 0.0, 0.0)
+            s.angular_velocity = w
             s.position = (px, py, 0.0)
             s.acceleration = stop
             s.angular_acceleration = (0.0, 0.0, 0.0)
@@ -109,3 +113,16 @@ class MultirotorPlant:
         s.on_ground = on_ground
         s.t += dt
         return s
+
+
+def _leveling_rate(q: quat.Quat, tau: float) -> Vec:
+    """Body angular velocity that rotates `q` towards level (same yaw) with time constant tau."""
+    level = quat.from_euler(0.0, 0.0, quat.yaw_of(q))
+    w, x, y, z = quat.mul(quat.conj(q), level)  # body-frame rotation from q to level
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    half = math.acos(min(1.0, w))
+    if half < 1e-9:
+        return (0.0, 0.0, 0.0)
+    k = 2.0 * half / math.sin(half) / tau
+    return (x * k, y * k, z * k)

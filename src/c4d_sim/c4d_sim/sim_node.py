@@ -13,7 +13,7 @@ Faults are ROS parameters, changeable at run time (parameter service):
   fault.mag_dropout, fault.range_dropout (bool); fault.gps_drift_m_s ([e, n, u]);
   fault.motor_health (one factor per motor, 1 = nominal, 0 = failed);
   fault.battery_drain_factor; fault.wind_gust_m_s (extra gust amplitude).
-Parameters: config (sim YAML), events_executor. Bad configuration: one line, exit 2.
+Parameters: config (sim YAML). Bad configuration: one line, exit 2.
 """
 
 from __future__ import annotations
@@ -116,7 +116,6 @@ def main(argv: list[str] | None = None) -> int:
         cfg = load_sim_config(Path(path) if path else default_sim_config())
     except SimConfigError as exc:
         return node_runtime.fail("sim", str(exc), node)
-    events = bool(node.declare_parameter("events_executor", True).value)
     af, sc = cfg["airframe"], cfg["sensors"]
     plant = MultirotorPlant(af, (0.0, 0.0, 0.0), cfg["yaw"])
     faults = Faults()
@@ -179,10 +178,7 @@ def main(argv: list[str] | None = None) -> int:
     drainer = Drainer(node)
     drainer.subscription(ActuatorCommand, "control/actuators", on_actuators,
                          QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
-    from c4d_gnc.node_runtime import make_executor
-
-    executor = make_executor(events)
-    executor.add_node(node)
+    drainer.adopt_node_services()  # fault injection via the parameter services, no executor needed
     rate = cfg["rate"]
     dt = 1.0 / rate
     t_wall0 = [0.0]  # wall-clock time of simulated t = 0, fixed at the first physics tick
@@ -301,9 +297,6 @@ def main(argv: list[str] | None = None) -> int:
 
     def drain(k: int) -> None:
         drainer.drain()
-        if k % 20 == 0:  # parameter services (fault injection) and graph events, 50 Hz
-            for _ in range(4):
-                executor.spin_once(timeout_sec=0.0)
 
     # plain sleeps (no spinning): the plant needs real time, not µs release precision
     executive = CyclicExecutive(schedule, tasks, MonotonicClock(spin_ns=0), name="sim", input_phase=drain,
@@ -319,7 +312,6 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         executive.release_gc()
         node.get_logger().info(f"sim stopped at t = {plant.state.t:.1f} s; overruns {executive.profiler.overruns_total}")
-        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

@@ -47,6 +47,21 @@ def test_takeoff_profile_then_land_and_disarm(make_loop):
     assert all(c == 0.0 for c in loop.core.out.commands)
 
 
+@pytest.mark.parametrize("range_lost", [False, True])
+def test_gnss_loss_then_land_descends_level_and_disarms(make_loop, range_lost):
+    """Blind descent: with the horizontal estimate drifting at 0.5 m/s the core must not chase it
+    (the vehicle stays within a metre), and touchdown is still detected, with or without range."""
+    loop = make_loop()
+    loop.take_off(5.0)
+    loop.position_lost_at, loop.range_lost = loop.t, range_lost
+    start = loop.plant.state.position
+    ok, _ = loop.core.request(Request(Command.LAND))
+    assert ok
+    assert loop.run_until(lambda: not loop.core.out.armed, timeout=15.0)
+    end = loop.plant.state.position
+    assert end[2] < 0.01 and math.dist(start[:2], end[:2]) < 1.0, (start, end)
+
+
 def test_position_step_5_m_settles_in_4_s_without_overshoot(make_loop):
     loop = make_loop()
     hover(loop)
@@ -132,3 +147,23 @@ def test_refuses_to_arm_with_stale_inputs(make_loop):
     loop.core.inputs.now += 1.0  # state and gyro are now a second old
     ok, reason = loop.core.request(Request(Command.ARM))
     assert not ok and "stale" in reason
+
+
+def test_tilted_touchdown_is_levelled_at_a_rate_the_gyro_sees():
+    """The ground levels a vehicle resting tilted; integrating the reported angular velocity
+    (what a gyro-driven estimator does) must land on the same, level attitude."""
+    from c4d_gnc.airframe import default_airframe_path, load_airframe
+    from c4d_sim.plant import MultirotorPlant
+
+    airframe = load_airframe(default_airframe_path("quad_x"))
+
+    plant = MultirotorPlant(airframe, (0.0, 0.0, 0.0))
+    tilted = quat.from_euler(math.radians(8), math.radians(-5), 0.7)
+    plant.state.orientation = tilted
+    integrated, dt = tilted, 0.001
+    for _ in range(500):
+        plant.step(dt, [0.0] * len(airframe.motors), False)
+        integrated = quat.integrate(integrated, plant.state.angular_velocity, dt)
+    roll, pitch, yaw = quat.to_euler(plant.state.orientation)
+    assert abs(roll) < 1e-3 and abs(pitch) < 1e-3 and abs(yaw - 0.7) < 0.01
+    assert math.degrees(quat.angle_between(integrated, plant.state.orientation)) < 0.05

@@ -109,3 +109,42 @@ def test_alignment_recovers_heading_from_the_magnetometer(yaw_deg):
     while not ekf.align(accel, field):
         pass
     assert math.degrees(quat.angle_between(ekf.q, q)) < 0.1
+
+
+def test_gnss_back_after_divergence_resets_position():
+    """Dead reckoning drifted far beyond the innovation gate (here: forced 300 m and 20 m/s off):
+    the first fix after the outage resets the position instead of being rejected forever."""
+    ekf = NavigationEkf()
+    s_home = HOME.to_geodetic(0.0, 0.0, 0.0)
+    while not ekf.align((0.0, 0.0, 9.81), (0.2, 0.0, -0.4)):
+        pass
+    for _ in range(20):
+        ekf.update_gps(*s_home, 0.5, 1.0)
+    assert ekf.origin is not None
+    ekf.p[:] = (300.0, -50.0, 0.0)
+    ekf.v[:] = (20.0, 0.0, 0.0)
+    ekf.t = 10.0  # last fix long ago
+    lat, lon, alt = HOME.to_geodetic(2.0, 1.0, 0.0)
+    assert ekf.update_gps(lat, lon, alt, 0.5, 1.0)
+    assert ekf.resets == 1 and np.allclose(ekf.p, ekf.origin.to_enu(lat, lon, alt), atol=1e-6)
+    assert np.allclose(ekf.v, 0.0) and ekf.position_valid
+
+
+@pytest.mark.parametrize("zupt", [False, True])
+def test_zero_velocity_updates_bound_drift_on_the_ground_without_gnss(make_loop, zupt):
+    """Standing disarmed without GNSS for 30 s: zero-velocity updates keep the estimate within
+    a metre; without them the accelerometer noise and bias walk integrate freely."""
+    f = Flight(make_loop)
+    f.step(1500, record=False)
+    assert f.ekf.position_valid
+    f.sensors.faults.gps_loss = True
+    start = f.ekf.p.copy()
+    for _ in range(300):  # 30 s
+        f.step(50, record=False)
+        if zupt:
+            f.ekf.update_zero_velocity()
+    drift = float(np.linalg.norm(f.ekf.p[:2] - start[:2]))
+    if zupt:
+        assert drift < 1.0 and float(np.linalg.norm(f.ekf.v)) < 0.1, drift
+    else:
+        assert drift > 1.0, drift  # the reason for the updates

@@ -1,0 +1,199 @@
+"""Failsafes over the whole graph in real time, each fault injected through the sim (or, for
+the geofence, by a forced go-to beyond it): GNSS loss → land, geofence breach → RTL, low
+battery → RTL then critical → land (never back), a dead node detected within 1 s. The action,
+its reason and its timing are asserted from health/summary; the vehicle's reaction from
+vehicle/status and the ground truth."""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import signal
+import time
+
+import pytest
+from c4d_testing import installed_executable, spin_for
+
+NODES = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "navigation", []),
+         ("c4d_gnc", "core", ["--ros-args", "-p", "rt_priority:=50"]), ("c4d_mission", "mission", []),
+         ("c4d_health", "health", [])]
+# a small fence (15 m from home) and a low RTL altitude keep the geofence scenario short
+FENCED_PLAN = """
+name: fenced hop
+rtl_altitude: 6
+geofence: {max_altitude: 20, max_distance: 15}
+items:
+  - {type: takeoff, altitude: 5}
+  - {type: waypoint, east: 5, north: 5, alt: 5}
+  - {type: land}
+"""
+
+
+@pytest.fixture(scope="module")
+def graph(module_processes, ros_node):
+    procs = {name: module_processes.spawn(name, [installed_executable(pkg, name), *args]) for pkg, name, args in NODES}
+    return (*ros_node, procs, module_processes)
+
+
+class Flight:
+    """The test's view of the vehicle and its ground station actions."""
+
+    def __init__(self, node, executor, procs, group) -> None:
+        from diagnostic_msgs.msg import DiagnosticStatus
+        from nav_msgs.msg import Odometry
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        from c4d_interfaces.msg import VehicleStatus
+        from c4d_interfaces.srv import UploadMission, VehicleCommand
+
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.summaries: list[tuple[float, dict[str, str]]] = []
+        self.status = None
+        self.truth = (0.0, 0.0, 0.0)
+        node.create_subscription(DiagnosticStatus, "health/summary", self._on_summary, latched)
+        node.create_subscription(VehicleStatus, "vehicle/status", lambda m: setattr(self, "status", m), latched)
+        node.create_subscription(Odometry, "sim/ground_truth", self._on_truth,
+                                 QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+        self.vehicle = node.create_client(VehicleCommand, "vehicle/command")
+        self.upload = node.create_client(UploadMission, "mission/upload")
+        self.params = node.create_client(SetParameters, "sim/set_parameters")
+        self.spin = functools.partial(spin_for, executor, watch=(group, procs))
+        self.group, self.procs = group, procs
+
+    def logs(self, name: str) -> str:
+        return self.group.log_of(self.procs[name])[-3000:]
+
+    def _on_summary(self, msg) -> None:
+        self.summaries.append((time.monotonic(), {kv.key: kv.value for kv in msg.values}))
+
+    def _on_truth(self, msg) -> None:
+        p = msg.pose.pose.position
+        self.truth = (p.x, p.y, p.z)
+
+    @property
+    def failsafe(self) -> str:
+        return self.summaries[-1][1]["failsafe"] if self.summaries else "NONE"
+
+    @property
+    def summary(self) -> dict[str, str]:
+        return self.summaries[-1][1] if self.summaries else {}
+
+    def call(self, client, request):
+        assert client.wait_for_service(timeout_sec=30)
+        future = client.call_async(request)
+        assert self.spin(15, future.done)
+        return future.result()
+
+    def fault(self, name: str, value) -> None:
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        reply = self.call(self.params, SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()]))
+        assert reply.results[0].successful, reply.results[0].reason
+
+    def command(self, command: int, **fields):
+        from c4d_interfaces.srv import VehicleCommand
+
+        return self.call(self.vehicle, VehicleCommand.Request(command=command, **fields))
+
+    def take_off(self, altitude: float = 5.0) -> None:
+        """Take off once the pre-arm checks pass (they refuse while the estimator aligns)."""
+        from c4d_interfaces.msg import VehicleStatus
+        from c4d_interfaces.srv import VehicleCommand
+
+        for _ in range(40):
+            reply = self.command(VehicleCommand.Request.CMD_TAKEOFF, altitude=altitude)
+            if reply.result == VehicleCommand.Response.RESULT_ACCEPTED:
+                break
+            self.spin(1.0)
+        assert reply.result == VehicleCommand.Response.RESULT_ACCEPTED, reply.message
+        assert self.spin(25, lambda: self.status is not None and self.status.landed_state == VehicleStatus.LANDED_IN_AIR
+                         and self.status.nav_state == VehicleStatus.NAV_HOLD), (self.status, self.truth, self.logs("core"))
+        self.spin(1.0)
+        assert self.failsafe in ("NONE", "WARN"), self.summary  # WARN: a platform-stall overrun, no action
+
+    def wait_failsafe(self, action: str, seconds: float) -> float:
+        """Seconds until health/summary reports `action`."""
+        t0 = time.monotonic()
+        assert self.spin(seconds, lambda: self.failsafe == action), (action, self.summary)
+        return time.monotonic() - t0
+
+    def wait_landed(self, seconds: float) -> None:
+        assert self.spin(seconds, lambda: self.status is not None and not self.status.armed), ("not disarmed", self.status)
+        assert self.spin(5, lambda: self.failsafe in ("NONE", "WARN")), self.summary  # reset on disarm
+
+
+def test_failsafes_in_flight(graph):
+    from c4d_interfaces.srv import UploadMission, VehicleCommand
+    from c4d_mission.plan import plan_from_yaml_text
+    from c4d_mission.ros_plan import plan_to_msg
+
+    node, executor, procs, group = graph
+    f = Flight(node, executor, procs, group)
+    report = []
+
+    # --- GNSS loss → LAND. Policy: gps_loss after 3 s; its consequence estimator_invalid (no
+    # position update for 1 s) after 1 s more — whichever fires first, the action is LAND.
+    f.take_off()
+    f.fault("fault.gps_loss", True)
+    waited = f.wait_failsafe("LAND", 8.0)
+    assert 1.0 <= waited <= 3.0 + 1.0, waited  # never before the shortest delay, at most one monitor period late
+    assert f.summary["reason"].startswith(("gps_loss", "estimator_invalid")), f.summary
+    report.append(f"gps loss → LAND after {waited:.1f} s ({f.summary['reason']})")
+    f.wait_landed(40)
+    f.fault("fault.gps_loss", False)
+
+    # --- geofence breach → RTL: a forced go-to 25 m out with a 15 m fence
+    plan = plan_from_yaml_text(FENCED_PLAN)
+    reply = f.call(f.upload, UploadMission.Request(plan=plan_to_msg(plan)))
+    assert reply.accepted, reply.errors
+    f.spin(3.0)  # GNSS back: let the estimator converge before the pre-arm checks
+    f.take_off()
+    target = node_target(f, east=25.0)
+    refused = f.command(VehicleCommand.Request.CMD_GOTO, target=target, yaw=math.nan)
+    assert refused.result == VehicleCommand.Response.RESULT_DENIED and "exceeds the geofence" in refused.message
+    forced = f.command(VehicleCommand.Request.CMD_GOTO, target=target, yaw=math.nan, force=True)
+    assert forced.result == VehicleCommand.Response.RESULT_ACCEPTED, forced.message
+    assert f.spin(20, lambda: math.hypot(*f.truth[:2]) > 15.5), f.truth
+    waited = f.wait_failsafe("RTL", 6.0)
+    assert waited <= 1.0 + 1.0, waited  # policy delay 1 s + estimator lag and one 10 Hz monitor period
+    assert f.summary["reason"].startswith("geofence_breach"), f.summary
+    farthest = math.hypot(*f.truth[:2])
+    report.append(f"geofence breach → RTL {waited:.1f} s after crossing 15.5 m; turned back at {farthest:.1f} m")
+    f.wait_landed(60)
+    assert math.hypot(*f.truth[:2]) < 2.0, f.truth  # landed at home
+
+    # --- low battery → RTL, then critical → LAND; most severe wins, never back to RTL
+    f.take_off()
+    first = len(f.summaries)
+    f.fault("fault.battery_drain_factor", 25.0)
+    f.wait_failsafe("RTL", 60.0)
+    assert "battery_low" in f.summary["reason"], f.summary
+    t_rtl = time.monotonic()
+    f.wait_failsafe("LAND", 40.0)
+    assert "battery_critical" in f.summary["reason"], f.summary
+    report.append(f"battery low → RTL, critical → LAND {time.monotonic() - t_rtl:.1f} s later")
+    seen = [s[1]["failsafe"] for s in f.summaries[first:]]
+    assert "RTL" not in seen[seen.index("LAND"):]  # no oscillation
+    f.wait_landed(40)
+
+    # --- a dead node is detected within 1 s (policy timeout 0.6 s + one 10 Hz monitor period)
+    mission = procs.pop("mission")
+    os.killpg(mission.pid, signal.SIGKILL)
+    t0 = time.monotonic()
+    assert f.spin(5, lambda: "mission" in f.summary.get("dead_nodes", "")), f.summary
+    detected = time.monotonic() - t0
+    assert detected <= 1.0, detected
+    report.append(f"dead node 'mission' detected after {detected:.2f} s")
+    print("\n" + "\n".join(report))
+
+
+def node_target(f: Flight, east: float):
+    """A GeoPoint `east` metres east of home at 5 m (the sim's home = the estimator's origin)."""
+    from c4d_gnc.geodesy import GeoOrigin
+    from c4d_interfaces.msg import GeoPoint
+
+    lat, lon, _ = GeoOrigin(43.5629, 1.4815, 146.0).to_geodetic(east, 0.0, 0.0)
+    return GeoPoint(latitude=lat, longitude=lon, altitude=5.0)
