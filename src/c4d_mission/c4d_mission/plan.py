@@ -163,10 +163,6 @@ def plan_from_yaml_text(text: str) -> Plan:
                 str(doc.get("name", "plan")), _num(doc, "cruise_speed", "plan", 0.0), _num(doc, "rtl_altitude", "plan", 0.0))
 
 
-# MAVLink command ids used by QGroundControl plans
-_QGC = {22: "takeoff", 16: "waypoint", 19: "loiter", 17: "loiter", 21: "land", 20: "rtl", 178: "change_speed",
-        206: "camera_distance", 2000: "camera_start", 2001: "camera_stop", 203: "camera_capture"}
-
 
 def plan_from_qgc_text(text: str) -> Plan:
     """QGroundControl `.plan` (JSON): simple mission items, inclusion polygon geofence."""
@@ -177,37 +173,24 @@ def plan_from_qgc_text(text: str) -> Plan:
     if not isinstance(doc, dict) or doc.get("fileType") != "Plan" or not isinstance(doc.get("mission"), dict):
         raise PlanError("not a QGroundControl .plan file (fileType 'Plan' with a 'mission')")
     mission = doc["mission"]
+    from .mavlink_items import item_from_mavlink  # shares the MAVLink item mapping with the bridge
+
     items = []
     for k, raw in enumerate(mission.get("items") or []):
         where = f"item {k}"
         if not isinstance(raw, dict) or raw.get("type") != "SimpleItem":
             raise PlanError(f"{where}: only SimpleItem is supported (got {raw.get('type') if isinstance(raw, dict) else raw!r})")
-        command = raw.get("command")
-        kind = _QGC.get(command)
-        if kind is None:
-            raise PlanError(f"{where}: unsupported MAVLink command {command}")
         params = raw.get("params")
         if not isinstance(params, list) or len(params) != 7:
             raise PlanError(f"{where}: 'params' must hold 7 values")
-        p = [NAN if v is None else float(v) for v in params]
-        if raw.get("frame") not in (3, 0, 2):  # relative-altitude global (3), global (0), mission (2)
-            raise PlanError(f"{where}: frame {raw.get('frame')} not supported (use relative altitude, 3)")
-        yaw = math.radians(90.0 - p[3]) if math.isfinite(p[3]) else NAN  # NED compass → ENU
-        if kind == "takeoff":
-            items.append(Item(kind, LOCAL, NAN, NAN, p[6]))
-        elif kind in ("waypoint", "loiter", "land"):
-            hold = p[0] if kind in ("waypoint", "loiter") and math.isfinite(p[0]) else 0.0
-            radius = p[1] if kind == "waypoint" and math.isfinite(p[1]) and p[1] > 0 else 1.0
-            if kind == "land" and (p[4] == 0.0 and p[5] == 0.0):
-                items.append(Item(kind))
-            else:
-                items.append(Item(kind, GLOBAL, p[4], p[5], p[6] if kind != "land" else 0.0, radius, hold, yaw))
-        elif kind == "change_speed":
-            items.append(Item(kind, speed=p[1]))
-        elif kind == "camera_distance":
-            items.append(Item(kind, camera_distance=p[0]))
-        else:
-            items.append(Item(kind))
+        try:
+            values = [NAN if v is None else float(v) for v in params]
+        except (TypeError, ValueError):
+            raise PlanError(f"{where}: 'params' must be numbers or null") from None
+        command, frame = raw.get("command"), raw.get("frame")
+        if not isinstance(command, int) or not isinstance(frame, int):
+            raise PlanError(f"{where}: 'command' and 'frame' must be integers")
+        items.append(item_from_mavlink(command, frame, values, where=where))
     polygon: list[tuple[float, float]] = []
     fence = doc.get("geoFence") or {}
     for poly in fence.get("polygons") or []:

@@ -1,0 +1,323 @@
+"""The bridge's ROS side: subscriptions into the telemetry Snapshot, service calls for MAVLink
+commands / missions / parameters, event messages (STATUSTEXT, MISSION_ITEM_REACHED,
+CAMERA_TRIGGER), link statistics and the GCS heartbeat topic for health.
+
+Why separate from bridge_node: the node is the loop; this is every ROS type in one place, so the
+protocol modules stay ROS-free and the loop stays readable.
+"""
+
+from __future__ import annotations
+
+import math
+
+from c4d_gnc.geodesy import GeoOrigin
+from c4d_gnc.ros_drain import LatestSampler
+from c4d_mission.mavlink_items import item_from_mavlink, item_to_mavlink
+from c4d_mission.plan import Geofence, Plan, PlanError
+
+from .encoders import Snapshot
+from .mission_protocol import FENCE, MISSION, WireItem
+from .params import ParamSpec
+from .signing import mavlink
+
+M = mavlink
+FAILSAFE_NAMES = ("NONE", "WARN", "HOLD", "RTL", "LAND", "TERMINATE")
+MISSION_STATE = {0: M.MISSION_STATE_NO_MISSION, 1: M.MISSION_STATE_NOT_STARTED, 2: M.MISSION_STATE_ACTIVE,
+                 3: M.MISSION_STATE_PAUSED, 4: M.MISSION_STATE_COMPLETE, 5: M.MISSION_STATE_PAUSED}
+
+
+class RosSide:
+    def __init__(self, node) -> None:
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import BatteryState, NavSatFix
+        from std_msgs.msg import Header
+
+        from c4d_interfaces.msg import CaptureEvent, ExecutorStats, MissionPlan, MissionState, VehicleState, VehicleStatus
+        from c4d_interfaces.srv import MissionControl, UploadMission, VehicleCommand
+
+        self.node = node
+        self.snapshot = Snapshot()
+        import time
+
+        self.snapshot.boot_s = time.monotonic()
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        best = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+        self.state = LatestSampler(rclpy.create_node("_bridge_samples"), VehicleState, "navigation/state", best)
+        node.create_subscription(VehicleStatus, "vehicle/status", self._on_status, latched)
+        node.create_subscription(BatteryState, "sensors/battery", self._on_battery, best)
+        node.create_subscription(NavSatFix, "perception/gps", self._on_gps,
+                                 QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT))
+        node.create_subscription(MissionState, "mission/state", self._on_mission, latched)
+        node.create_subscription(MissionPlan, "mission/plan", self._on_plan, latched)
+        node.create_subscription(DiagnosticStatus, "health/summary", self._on_health, latched)
+        node.create_subscription(CaptureEvent, "payload/captures", self._on_capture, 10)
+        node.create_subscription(ExecutorStats, "gnc/executor_stats", self._on_stats, 10)
+        self.pub_heartbeat = node.create_publisher(Header, "bridge/gcs_heartbeat", best)
+        self.pub_stats = node.create_publisher(DiagnosticArray, "bridge/link_stats", 10)
+        self.vehicle = node.create_client(VehicleCommand, "vehicle/command")
+        self.upload = node.create_client(UploadMission, "mission/upload")
+        self.control = node.create_client(MissionControl, "mission/control")
+        self.param_clients: dict[str, object] = {}
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(node)
+        self.types = {"VehicleCommand": VehicleCommand, "UploadMission": UploadMission, "MissionControl": MissionControl,
+                      "Header": Header, "DiagnosticArray": DiagnosticArray, "DiagnosticStatus": DiagnosticStatus}
+        self.last = {"reached": -1, "failsafe": "NONE", "dead": "", "captures": 0, "plan_id": -1}
+        self.fence: tuple[tuple[float, float], ...] = ()
+        self.plan_msg = None
+        self.pending_params: list[tuple[ParamSpec, float]] = []
+        self.router = self.missions = self.params = None
+
+    def bind(self, router, missions, params) -> None:
+        self.router, self.missions, self.params = router, missions, params
+        self.pending_params = [(spec, params.get(spec.name)) for spec in params.table
+                               if spec.node and params.get(spec.name) != spec.default]  # persisted: push once up
+
+    # ------------------------------------------------------------------ loop hooks
+    def spin_once(self) -> None:
+        self.executor.spin_once(timeout_sec=0.0)
+
+    def tick(self, now: float) -> None:
+        s = self.state.latest()
+        if s is not None:
+            from c4d_interfaces.msg import VehicleState
+
+            snap = self.snapshot
+            snap.position = (s.position.x, s.position.y, s.position.z)
+            snap.velocity = (s.velocity.x, s.velocity.y, s.velocity.z)
+            snap.angular_velocity = (s.angular_velocity.x, s.angular_velocity.y, s.angular_velocity.z)
+            snap.valid_attitude = bool(s.valid & VehicleState.VALID_ATTITUDE)
+            snap.valid_position = bool(s.valid & VehicleState.VALID_POSITION_XY)
+            q = s.orientation
+            snap.orientation = (q.w, q.x, q.y, q.z) if snap.valid_attitude else None
+            if s.valid & VehicleState.VALID_GLOBAL:
+                snap.global_position = (s.geodetic.latitude, s.geodetic.longitude, s.geodetic.altitude)
+            if s.valid & VehicleState.VALID_ORIGIN:
+                home = (s.origin.latitude, s.origin.longitude, s.origin.altitude)
+                if snap.home != home:
+                    snap.home = home
+                    if self.plan_msg is not None:
+                        self._on_plan(self.plan_msg)  # local items can now become global
+        if self.pending_params:
+            for spec, value in list(self.pending_params):
+                if self._param_client(spec.node).service_is_ready():
+                    self.set_node_parameter(spec, value)
+                    self.pending_params.remove((spec, value))
+
+    def shutdown(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        import rclpy
+
+        rclpy.try_shutdown()
+
+    # ------------------------------------------------------------------ topics in
+    def _on_status(self, msg) -> None:
+        s = self.snapshot
+        s.armed, s.flight_mode, s.nav_state, s.landed_state = msg.armed, msg.flight_mode, msg.nav_state, msg.landed_state
+
+    def _on_battery(self, msg) -> None:
+        s = self.snapshot
+        s.battery_voltage, s.battery_current = msg.voltage, msg.current
+        s.battery_remaining = msg.percentage
+        if math.isfinite(msg.capacity) and math.isfinite(msg.charge):
+            s.battery_consumed_mah = max(0.0, (msg.capacity - msg.charge) * 1000.0)
+
+    def _on_gps(self, msg) -> None:
+        fix = M.GPS_FIX_TYPE_3D_FIX if msg.status.status >= 0 else M.GPS_FIX_TYPE_NO_FIX
+        eph = math.sqrt(msg.position_covariance[0]) if msg.position_covariance[0] > 0 else math.nan
+        epv = math.sqrt(msg.position_covariance[8]) if msg.position_covariance[8] > 0 else math.nan
+        self.snapshot.gps = (msg.latitude, msg.longitude, msg.altitude, fix, eph, epv)
+
+    def _on_stats(self, msg) -> None:
+        self.snapshot.load = msg.load_mean_percent / 100.0
+
+    def _on_mission(self, msg) -> None:
+        s = self.snapshot
+        s.mission_current, s.mission_total = msg.current_item, msg.total_items
+        s.mission_state = MISSION_STATE.get(msg.state, 0)
+        if msg.last_reached_item >= 0 and msg.last_reached_item != self.last["reached"] and self.router:
+            self.router.send(M.MAVLink_mission_item_reached_message(msg.last_reached_item))
+        self.last["reached"] = msg.last_reached_item
+
+    def _on_plan(self, msg) -> None:
+        """The active plan, as the MISSION (and FENCE) items a download returns."""
+        from c4d_mission.ros_plan import plan_from_msg
+
+        self.plan_msg = msg
+        if self.missions is None:
+            return
+        home = GeoOrigin(*self.snapshot.home) if self.snapshot.home else None
+        try:
+            plan = plan_from_msg(msg)
+            items = []
+            for item in plan.items:
+                command, frame, params = item_to_mavlink(item, home)
+                items.append(WireItem(command, {3: M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}.get(frame, frame), tuple(params)))
+        except PlanError as exc:
+            self.node.get_logger().warning(f"active plan not downloadable yet: {exc}")
+            return
+        self.missions.stored[MISSION] = items
+        self.missions.stored[FENCE] = [WireItem(M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, M.MAV_FRAME_GLOBAL_INT,
+                                                (len(plan.geofence.polygon), 0.0, 0.0, 0.0, lat, lon, 0.0))
+                                       for lat, lon in plan.geofence.polygon]
+
+    def _on_health(self, msg) -> None:
+        values = {kv.key: kv.value for kv in msg.values}
+        failsafe, dead = values.get("failsafe", "NONE"), values.get("dead_nodes", "")
+        self.snapshot.failsafe = FAILSAFE_NAMES.index(failsafe) if failsafe in FAILSAFE_NAMES else 0
+        if failsafe != self.last["failsafe"] and failsafe != "WARN":
+            severity = M.MAV_SEVERITY_CRITICAL if failsafe not in ("NONE", "WARN") else M.MAV_SEVERITY_NOTICE
+            self.statustext(severity, f"failsafe {failsafe}: {values.get('reason', '')}" if failsafe != "NONE"
+                            else "failsafe cleared")
+        if dead != self.last["dead"] and dead:
+            self.statustext(M.MAV_SEVERITY_ERROR, f"node lost: {dead}")
+        self.last["failsafe"], self.last["dead"] = failsafe, dead
+
+    def _on_capture(self, msg) -> None:
+        if self.router:
+            stamp_us = msg.header.stamp.sec * 1_000_000 + msg.header.stamp.nanosec // 1000
+            self.router.send(M.MAVLink_camera_trigger_message(stamp_us, msg.index))
+
+    # ------------------------------------------------------------------ MAVLink out
+    def statustext(self, severity: int, text: str) -> None:
+        if self.router:
+            self.router.send(M.MAVLink_statustext_message(severity, text.encode()[:50], 0, 0))
+
+    def ack(self, msg, result: int, reason: str = "") -> None:
+        self.router.send(M.MAVLink_command_ack_message(msg.command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
+        if reason and result != M.MAV_RESULT_ACCEPTED:
+            self.statustext(M.MAV_SEVERITY_WARNING, reason)
+
+    def gcs_heartbeat(self) -> None:
+        h = self.types["Header"]()
+        h.stamp = self.node.get_clock().now().to_msg()
+        h.frame_id = "gcs"
+        self.pub_heartbeat.publish(h)
+
+    def publish_link_stats(self, router, schedulers, link, now: float) -> None:
+        from diagnostic_msgs.msg import KeyValue
+
+        array = self.types["DiagnosticArray"]()
+        array.header.stamp = self.node.get_clock().now().to_msg()
+        status_t = self.types["DiagnosticStatus"]
+        array.status.append(status_t(level=status_t.OK if link.up else status_t.WARN, name="bridge/link",
+                                     hardware_id="gcs", message="GCS link up" if link.up else "no GCS heartbeat",
+                                     values=[KeyValue(key="losses", value=str(link.losses)),
+                                             KeyValue(key="since_heartbeat_s", value=f"{link.since_heartbeat_s or -1:.2f}")]))
+        for name, endpoint in router.endpoints.items():
+            st, ls = endpoint.stats, schedulers[name].link_stats(now)
+            worst = max((r.max_delay_fraction for r in schedulers[name].stream_stats()), default=0.0)
+            values = {"rx_bytes": st.rx_bytes, "tx_bytes": st.tx_bytes, "rx_frames": st.rx_frames, "tx_frames": st.tx_frames,
+                      "rx_errors": st.rx_errors, "unsigned_rejected": st.errors.get("unsigned", 0),
+                      "bad_signature": st.errors.get("bad_signature", 0), "telemetry_bytes_s": f"{ls.bytes_per_second:.0f}",
+                      "utilisation": f"{ls.utilisation:.3f}", "queue_drops": ls.dropped,
+                      "max_delay_fraction": f"{worst:.3f}"}
+            array.status.append(status_t(level=status_t.OK, name=f"bridge/endpoint {name}", hardware_id=name,
+                                         message="ok", values=[KeyValue(key=k, value=str(v)) for k, v in values.items()]))
+        self.pub_stats.publish(array)
+
+    # ------------------------------------------------------------------ services
+    def _call(self, client, request, done) -> None:
+        if not client.service_is_ready():
+            done(None)
+            return
+        client.call_async(request).add_done_callback(lambda f: done(f.result()))
+
+    def vehicle_command(self, fields: dict, ack) -> None:
+        from c4d_interfaces.msg import GeoPoint
+
+        req = self.types["VehicleCommand"].Request(command=fields["command"], altitude=float(fields.get("altitude", 0.0)),
+                                                   mode=int(fields.get("mode", 0)), force=bool(fields.get("force", False)),
+                                                   yaw=float(fields.get("yaw", math.nan)))
+        if "latitude" in fields:
+            alt = fields["altitude"] if math.isfinite(fields["altitude"]) else self.snapshot.position[2]
+            req.target = GeoPoint(latitude=fields["latitude"], longitude=fields["longitude"], altitude=float(alt))
+        self._call(self.vehicle, req, lambda r: ack(M.MAV_RESULT_TEMPORARILY_REJECTED, "mission node not reachable")
+                   if r is None else ack(r.result, r.message))
+
+    def mission_control(self, fields: dict, ack) -> None:
+        t = self.types["MissionControl"].Request
+        action = {"start": t.ACTION_START, "resume": t.ACTION_RESUME, "clear": t.ACTION_CLEAR,
+                  "set_current": t.ACTION_SET_CURRENT}[fields["action"]]
+        item = max(0, int(fields.get("item", 0)))
+        self._call(self.control, t(action=action, item=item), lambda r: ack(M.MAV_RESULT_TEMPORARILY_REJECTED,
+                   "mission node not reachable") if r is None else ack(r.result, r.message))
+
+    def upload_mission(self, mission_type: int, items: list[WireItem]) -> None:
+        """Complete upload from a GCS: FENCE items become the polygon of the next plans; MISSION
+        items become a plan validated by the mission node, whose verdict is the MISSION_ACK."""
+        finish = self.missions.finish_upload
+        if mission_type == FENCE:
+            if items and (len(items) < 3 or any(i.command != M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION for i in items)):
+                self.statustext(M.MAV_SEVERITY_WARNING, "fence: one inclusion polygon of >= 3 vertices supported")
+                return finish(M.MAV_MISSION_UNSUPPORTED)
+            self.fence = tuple((i.params[4], i.params[5]) for i in items)
+            return finish(M.MAV_MISSION_ACCEPTED)
+        if not items:
+            if self.snapshot.mission_state == M.MISSION_STATE_ACTIVE:
+                return finish(M.MAV_MISSION_DENIED)
+            return self.mission_control({"action": "clear"}, lambda r, reason="": finish(
+                M.MAV_MISSION_ACCEPTED if r == 0 else M.MAV_MISSION_DENIED))
+        home_alt = self.snapshot.home[2] if self.snapshot.home else None
+        try:
+            plan_items = tuple(item_from_mavlink(i.command, {M.MAV_FRAME_GLOBAL_INT: 5, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: 6}
+                                                 .get(i.frame, i.frame), i.params, home_alt, where=f"item {k}")
+                               for k, i in enumerate(items))
+        except PlanError as exc:
+            self.statustext(M.MAV_SEVERITY_WARNING, str(exc))
+            return finish(M.MAV_MISSION_UNSUPPORTED_FRAME if "frame" in str(exc) else
+                          M.MAV_MISSION_UNSUPPORTED if "unsupported" in str(exc) else M.MAV_MISSION_INVALID)
+        p = self.params
+        plan = Plan(plan_items, Geofence(self.fence, p.get("GF_MAX_VER_DIST"), p.get("GF_MAX_HOR_DIST")), "mavlink",
+                    p.get("MPC_XY_CRUISE"), p.get("RTL_RETURN_ALT"))
+        from c4d_mission.ros_plan import plan_to_msg
+
+        def verdict(reply) -> None:
+            if reply is None:
+                self.statustext(M.MAV_SEVERITY_WARNING, "mission node not reachable")
+                return finish(M.MAV_MISSION_ERROR)
+            if not reply.accepted:
+                self.statustext(M.MAV_SEVERITY_WARNING, reply.errors[0] if reply.errors else "mission rejected")
+                return finish(M.MAV_MISSION_INVALID)
+            finish(M.MAV_MISSION_ACCEPTED)
+
+        self._call(self.upload, self.types["UploadMission"].Request(plan=plan_to_msg(plan)), verdict)
+
+    def clear_mission(self, mission_type: int) -> int:
+        if mission_type in (MISSION, M.MAV_MISSION_TYPE_ALL):
+            if self.snapshot.mission_state == M.MISSION_STATE_ACTIVE:
+                return M.MAV_MISSION_DENIED
+            self.mission_control({"action": "clear"}, lambda r, reason="": None)
+        if mission_type in (FENCE, M.MAV_MISSION_TYPE_ALL):
+            self.fence = ()
+        return M.MAV_MISSION_ACCEPTED
+
+    def set_current_item(self, seq: int) -> bool:
+        if not 0 <= seq < len(self.missions.stored[MISSION]):
+            return False
+        self.mission_control({"action": "set_current", "item": seq}, lambda r, reason="": None)
+        return True
+
+    def _param_client(self, node_name: str):
+        from rcl_interfaces.srv import SetParameters
+
+        if node_name not in self.param_clients:
+            self.param_clients[node_name] = self.node.create_client(SetParameters, f"{node_name}/set_parameters")
+        return self.param_clients[node_name]
+
+    def set_node_parameter(self, spec: ParamSpec, value: float) -> None:
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        request = SetParameters.Request(parameters=[Parameter(spec.ros_name, value=float(value)).to_parameter_msg()])
+
+        def done(reply) -> None:
+            if reply is None or not reply.results[0].successful:
+                why = "node not reachable" if reply is None else reply.results[0].reason
+                self.statustext(M.MAV_SEVERITY_WARNING, f"{spec.name} not applied: {why}")
+
+        self._call(self._param_client(spec.node), request, done)
