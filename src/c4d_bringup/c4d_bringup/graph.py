@@ -1,0 +1,102 @@
+"""`c4d up` without ROS: prepare a run directory from a system config and supervise the graph.
+
+prepare_run() checks everything that can be checked before a process starts (executables
+resolve where `ros2 run` looks, parameter variables), creates the run directory
+(<run_root>/<UTC stamp>/ with logs/, params/) and writes one ROS parameters file per node;
+run_graph() starts the processes, restarts them by policy and stops them all on
+SIGINT/SIGTERM/SIGHUP (a second signal skips the grace period) or when a critical node dies.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from collections.abc import Callable, Mapping
+from datetime import UTC, datetime
+from pathlib import Path
+
+import yaml
+
+from .supervisor import ProcessSpec, RestartPolicy, Supervisor
+from .system_config import (
+    ConfigError,
+    SystemConfig,
+    node_parameters,
+    params_document,
+    resolve_executable,
+    variables_for,
+)
+
+
+def new_run_dir(config: SystemConfig, root: str | None = None) -> Path:
+    """A fresh <run_root>/<UTC stamp>[-k]/ (relative roots are relative to the working directory)."""
+    base = Path(root or config.run_root).expanduser()
+    stamp = datetime.now(UTC).strftime("%Y%m%d-%H%M%S")
+    path, k = base / stamp, 2
+    while path.exists():
+        path, k = base / f"{stamp}-{k}", k + 1
+    return path.resolve()
+
+
+def resolve_all(config: SystemConfig) -> dict[str, Path]:
+    """Executable of every node (ConfigError naming the first that does not resolve)."""
+    return {node.name: resolve_executable(node) for node in config.nodes}
+
+
+def prepare_run(config: SystemConfig, run_dir: Path, executables: Mapping[str, Path] | None = None) -> list[ProcessSpec]:
+    """Resolve, substitute, write the parameter files; return the process specs (nothing started)."""
+    executables = executables or resolve_all(config)
+    variables = variables_for(config, run_dir)
+    parameters = {node.name: node_parameters(node, variables, config.path) for node in config.nodes}
+    try:
+        (run_dir / "params").mkdir(parents=True, exist_ok=True)
+        (run_dir / "logs").mkdir(exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"cannot create the run directory {run_dir}: {exc.strerror or exc}") from None
+    specs = []
+    for node in config.nodes:
+        argv = [str(executables[node.name])]
+        if parameters[node.name]:
+            params_file = run_dir / "params" / f"{node.name}.yaml"
+            params_file.write_text(yaml.safe_dump(params_document(parameters[node.name]), sort_keys=False))
+            argv += ["--ros-args", "--params-file", str(params_file)]
+        specs.append(ProcessSpec(node.name, tuple(argv), run_dir / "logs" / f"{node.name}.log", node.critical,
+                                 RestartPolicy(node.restart, node.max_restarts, node.restart_window_s, node.backoff_s)))
+    return specs
+
+
+def run_graph(config: SystemConfig, specs: list[ProcessSpec], env: Mapping[str, str], run_dir: Path,
+              log: Callable[[str], None]) -> int:
+    """Supervise until a stop signal (exit 0) or a critical failure (exit 1); every child is gone on return."""
+    signals: list[int] = []
+
+    def on_signal(signum, frame) -> None:
+        signals.append(signum)
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    supervisor = Supervisor(specs, env, log=log, state_file=run_dir / "supervisor.json")
+    try:
+        supervisor.start()
+        log(f"up: {len(specs)} nodes, logs in {run_dir / 'logs'} (Ctrl-C to stop)")
+        while not signals and supervisor.failure is None:
+            supervisor.poll()
+            time.sleep(0.1)
+        if supervisor.failure:
+            log(f"stopping: {supervisor.failure}")
+        else:
+            log(f"stopping on {signal.Signals(signals[0]).name}")
+    finally:
+        codes = supervisor.stop(config.shutdown_timeout_s, force=lambda: len(signals) > 1)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    bad = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT)}
+    log("down: every node stopped" + (f" ({', '.join(f'{n}: {c}' for n, c in bad.items())})" if bad else ""))
+    return 1 if supervisor.failure else 0
+
+
+def stamped_logger(stream=None) -> Callable[[str], None]:
+    def log(text: str) -> None:
+        out = stream or sys.stdout
+        print(f"c4d [{time.strftime('%H:%M:%S')}] {text}", file=out, flush=True)
+    return log

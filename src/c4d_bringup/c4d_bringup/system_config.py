@@ -1,0 +1,311 @@
+"""System configuration: which nodes run, with which parameters, on which platform.
+
+One YAML file describes the whole graph; `c4d up`, `c4d fly`, `c4d status` and
+`ros2 launch c4d_bringup sitl.launch.py` all read it through this module, so they start the
+same processes with the same parameters. Format (the bundled config/sitl.yaml is the reference):
+
+    platform: sitl                 # sitl (the simulated vehicle `sim` must run) | hardware (no sim)
+    discovery_range: LOCALHOST     # ROS_AUTOMATIC_DISCOVERY_RANGE of every node (env C4D_DISCOVERY_RANGE overrides)
+    run_root: c4d_runs             # each run writes <run_root>/<UTC stamp>/ (logs, params, flights, captures, report)
+    shutdown_timeout_s: 10         # SIGINT, then SIGKILL after this long
+    nodes:                         # started in this order, each in its own process
+      core:                        # a known node name (see CATALOGUE) ...
+        critical: true             # its death stops the whole graph (default: see CATALOGUE)
+        restart: never             # never | on-failure | always (default: never if critical, else always)
+        max_restarts: 5            # in any restart_window_s; then it stays down (a critical one stops the graph)
+        restart_window_s: 60
+        backoff_s: 1.0             # delay before a restart, doubled per consecutive restart (max 10 s)
+        enabled: true
+        parameters: {rt_priority: 50}
+      my_node: {package: my_pkg, executable: my_exe}   # ... or any node given with package and executable
+
+Parameter values are ROS parameter values: booleans, integers, floats, strings, non-empty
+lists of one of those, or nested mappings (flattened to dotted names, e.g. fault.gps_loss).
+Strings may use ${run} (this run's directory) and ${config_dir} (the directory of the system
+YAML). Every problem is a ConfigError with one line; nothing here starts a process.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+# node name -> (package, executable, critical by default)
+CATALOGUE: dict[str, tuple[str, str, bool]] = {
+    "sim": ("c4d_sim", "sim", True),
+    "perception": ("c4d_gnc", "perception", True),
+    "navigation": ("c4d_gnc", "navigation", True),
+    "core": ("c4d_gnc", "core", True),
+    "mission": ("c4d_mission", "mission", False),
+    "payload": ("c4d_mission", "payload", False),
+    "health": ("c4d_health", "health", False),
+    "bridge": ("c4d_bridge_mavlink", "bridge", False),
+    "recorder": ("c4d_data", "recorder", False),
+}
+PLATFORMS = ("sitl", "hardware")
+RESTART_MODES = ("never", "on-failure", "always")
+DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT", "OFF")
+TOP_KEYS = {"platform", "discovery_range", "run_root", "shutdown_timeout_s", "nodes"}
+NODE_KEYS = {"package", "executable", "critical", "restart", "max_restarts", "restart_window_s", "backoff_s",
+             "enabled", "parameters"}
+NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+PARAM_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
+VARIABLE = re.compile(r"\$\{([^}]*)\}")
+Scalar = bool | int | float | str
+
+
+class ConfigError(ValueError):
+    """A system configuration that cannot be used (one line, says where)."""
+
+
+@dataclass(frozen=True)
+class NodeConfig:
+    name: str
+    package: str
+    executable: str
+    critical: bool
+    restart: str = "never"
+    max_restarts: int = 5
+    restart_window_s: float = 60.0
+    backoff_s: float = 1.0
+    parameters: Mapping[str, Any] = field(default_factory=dict)  # flattened dotted names
+
+
+@dataclass(frozen=True)
+class SystemConfig:
+    path: Path
+    platform: str
+    discovery_range: str
+    run_root: str
+    shutdown_timeout_s: float
+    nodes: tuple[NodeConfig, ...]
+
+    def node(self, name: str) -> NodeConfig | None:
+        return next((n for n in self.nodes if n.name == name), None)
+
+    @property
+    def names(self) -> list[str]:
+        return [n.name for n in self.nodes]
+
+
+def default_config_path() -> Path:
+    """The installed config/sitl.yaml of c4d_bringup (the source tree's copy when not installed)."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        installed = Path(get_package_share_directory("c4d_bringup")) / "config" / "sitl.yaml"
+        if installed.is_file():
+            return installed
+    except Exception:  # not on the ament index (e.g. a unit test of the source tree)
+        pass
+    return Path(__file__).resolve().parent.parent / "config" / "sitl.yaml"
+
+
+def load_system_config(path: str | Path) -> SystemConfig:
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"cannot read system config {path}: {exc.strerror or exc}") from None
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise ConfigError(f"system config {path}: malformed YAML{where}") from None
+    return parse_system_config(doc, path)
+
+
+def _where(path: Path) -> str:
+    return f"system config {path}"
+
+
+def parse_system_config(doc: Any, path: Path) -> SystemConfig:
+    """Check a parsed YAML document completely and return the model (ConfigError on the first problem)."""
+    w = _where(path)
+    if not isinstance(doc, dict):
+        raise ConfigError(f"{w}: must be a mapping with a 'nodes' entry")
+    unknown = set(doc) - TOP_KEYS
+    if unknown:
+        raise ConfigError(f"{w}: unknown field(s) {', '.join(sorted(map(str, unknown)))} (known: {', '.join(sorted(TOP_KEYS))})")
+    platform = doc.get("platform", "sitl")
+    if platform not in PLATFORMS:
+        raise ConfigError(f"{w}: platform must be one of {', '.join(PLATFORMS)}, not {platform!r}")
+    discovery = doc.get("discovery_range", "LOCALHOST")
+    if discovery not in DISCOVERY_RANGES:
+        raise ConfigError(f"{w}: discovery_range must be one of {', '.join(DISCOVERY_RANGES)}, not {discovery!r}")
+    run_root = doc.get("run_root", "c4d_runs")
+    if not isinstance(run_root, str) or not run_root:
+        raise ConfigError(f"{w}: run_root must be a non-empty path")
+    timeout = _number(doc.get("shutdown_timeout_s", 10.0), f"{w}: shutdown_timeout_s", minimum=0.5)
+    nodes_doc = doc.get("nodes")
+    if not isinstance(nodes_doc, dict) or not nodes_doc:
+        raise ConfigError(f"{w}: 'nodes' must be a non-empty mapping of node name -> settings")
+    nodes = []
+    for name, entry in nodes_doc.items():
+        node = _parse_node(name, entry, w)
+        if node is not None:
+            nodes.append(node)
+    if not nodes:
+        raise ConfigError(f"{w}: every node is disabled")
+    names = {n.name for n in nodes}
+    if platform == "sitl" and "sim" not in names:
+        raise ConfigError(f"{w}: platform sitl needs the 'sim' node (or use platform: hardware)")
+    if platform == "hardware" and "sim" in names:
+        raise ConfigError(f"{w}: platform hardware must not run the 'sim' node")
+    return SystemConfig(path.resolve(), platform, discovery, run_root, timeout, tuple(nodes))
+
+
+def _parse_node(name: Any, entry: Any, w: str) -> NodeConfig | None:
+    if not isinstance(name, str) or not NAME.match(name):
+        raise ConfigError(f"{w}: node name {name!r} is not a valid ROS name")
+    where = f"{w}: node '{name}'"
+    entry = {} if entry is None else entry
+    if not isinstance(entry, dict):
+        raise ConfigError(f"{where}: settings must be a mapping")
+    unknown = set(entry) - NODE_KEYS
+    if unknown:
+        raise ConfigError(f"{where}: unknown field(s) {', '.join(sorted(map(str, unknown)))} "
+                          f"(known: {', '.join(sorted(NODE_KEYS))})")
+    enabled = entry.get("enabled", True)
+    if not isinstance(enabled, bool):
+        raise ConfigError(f"{where}: enabled must be true or false")
+    known = CATALOGUE.get(name)
+    if known is None and not ("package" in entry and "executable" in entry):
+        raise ConfigError(f"{w}: unknown node '{name}' (known: {', '.join(CATALOGUE)}; "
+                          "any other node needs package and executable)")
+    package = entry.get("package", known[0] if known else None)
+    executable = entry.get("executable", known[1] if known else None)
+    for key, value in (("package", package), ("executable", executable)):
+        if not isinstance(value, str) or not value or "/" in value:
+            raise ConfigError(f"{where}: {key} must be a plain name, not {value!r}")
+    critical = entry.get("critical", known[2] if known else False)
+    if not isinstance(critical, bool):
+        raise ConfigError(f"{where}: critical must be true or false")
+    restart = entry.get("restart", "never" if critical else "always")
+    if restart not in RESTART_MODES:
+        raise ConfigError(f"{where}: restart must be one of {', '.join(RESTART_MODES)}, not {restart!r}")
+    max_restarts = entry.get("max_restarts", 5)
+    if isinstance(max_restarts, bool) or not isinstance(max_restarts, int) or max_restarts < 0:
+        raise ConfigError(f"{where}: max_restarts must be an integer >= 0")
+    window = _number(entry.get("restart_window_s", 60.0), f"{where}: restart_window_s", minimum=1.0)
+    backoff = _number(entry.get("backoff_s", 1.0), f"{where}: backoff_s", minimum=0.0)
+    params = entry.get("parameters") or {}
+    if not isinstance(params, dict):
+        raise ConfigError(f"{where}: parameters must be a mapping of name -> value")
+    flat: dict[str, Any] = {}
+    _flatten(params, "", flat, where)
+    if not enabled:
+        return None
+    return NodeConfig(name, package, executable, critical, restart, max_restarts, window, backoff, flat)
+
+
+def _number(value: Any, where: str, minimum: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < minimum:
+        raise ConfigError(f"{where} must be a number >= {minimum:g}, not {value!r}")
+    return float(value)
+
+
+def _flatten(params: dict, prefix: str, out: dict[str, Any], where: str) -> None:
+    for key, value in params.items():
+        name = f"{prefix}{key}"
+        if not isinstance(key, str) or not PARAM_NAME.match(name):
+            raise ConfigError(f"{where}: parameter name {name!r} is not valid")
+        if isinstance(value, dict):
+            _flatten(value, name + ".", out, where)
+        elif isinstance(value, list):
+            if not value:
+                raise ConfigError(f"{where}: parameter {name}: an empty list has no ROS parameter type")
+            kinds = {_kind(v, name, where) for v in value}
+            if len(kinds) > 1 and kinds != {"int", "float"}:
+                raise ConfigError(f"{where}: parameter {name}: list mixes {' and '.join(sorted(kinds))} values")
+            out[name] = [float(v) for v in value] if kinds == {"int", "float"} else list(value)
+        else:
+            _kind(value, name, where)
+            out[name] = value
+
+
+def _kind(value: Any, name: str, where: str) -> str:
+    if isinstance(value, bool):
+        return "bool"
+    if isinstance(value, int):
+        return "int"
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise ConfigError(f"{where}: parameter {name}: {value} is not a finite number")
+        return "float"
+    if isinstance(value, str):
+        return "str"
+    raise ConfigError(f"{where}: parameter {name}: {value!r} is not a ROS parameter value")
+
+
+def substitute(value: Any, variables: Mapping[str, str], where: str = "system config") -> Any:
+    """Replace ${name} in strings (recursively in lists); an unknown name is a ConfigError."""
+    if isinstance(value, list):
+        return [substitute(v, variables, where) for v in value]
+    if not isinstance(value, str):
+        return value
+
+    def one(match: re.Match) -> str:
+        if match.group(1) not in variables:
+            raise ConfigError(f"{where}: unknown variable ${{{match.group(1)}}} (known: "
+                              f"{', '.join('${' + k + '}' for k in sorted(variables))})")
+        return variables[match.group(1)]
+
+    return VARIABLE.sub(one, value)
+
+
+def node_parameters(node: NodeConfig, variables: Mapping[str, str], config_path: Path) -> dict[str, Any]:
+    """The node's parameters with ${...} substituted (ConfigError on an unknown variable)."""
+    where = f"{_where(config_path)}: node '{node.name}'"
+    return {k: substitute(v, variables, where) for k, v in node.parameters.items()}
+
+
+def check_variables(config: SystemConfig) -> None:
+    """Fail early on an unknown ${...} anywhere in the parameters."""
+    dummy = {"run": "/run", "config_dir": "/config"}
+    for node in config.nodes:
+        node_parameters(node, dummy, config.path)
+
+
+def params_document(parameters: Mapping[str, Any]) -> dict[str, Any]:
+    """A ROS 2 parameters file applying `parameters` to every node of the process."""
+    return {"/**": {"ros__parameters": dict(parameters)}}
+
+
+def variables_for(config: SystemConfig, run_dir: Path) -> dict[str, str]:
+    return {"run": str(run_dir), "config_dir": str(config.path.parent)}
+
+
+def resolve_executable(node: NodeConfig) -> Path:
+    """<prefix>/lib/<package>/<executable> found through the ament index, as `ros2 run` does."""
+    try:
+        from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+    except ImportError:  # pragma: no cover - every c4d environment has ament_index_python
+        raise ConfigError("ament_index_python is not importable: source env.sh first") from None
+    try:
+        prefix = Path(get_package_prefix(node.package))
+    except (PackageNotFoundError, ValueError):
+        raise ConfigError(f"node '{node.name}': unknown executable {node.package}/{node.executable} "
+                          f"(package {node.package} is not on the ament index; source env.sh / install/setup.bash)") from None
+    path = prefix / "lib" / node.package / node.executable
+    if not (path.is_file() and os.access(path, os.X_OK)):
+        raise ConfigError(f"node '{node.name}': unknown executable {node.package}/{node.executable} (no {path})")
+    return path
+
+
+def child_environment(config: SystemConfig, base: Mapping[str, str]) -> dict[str, str]:
+    """Environment of every node: the caller's (ROS_DOMAIN_ID, test tokens, paths) with the discovery range set."""
+    env = dict(base)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = base.get("C4D_DISCOVERY_RANGE") or config.discovery_range
+    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    env["PYTHONUNBUFFERED"] = "1"
+    env.setdefault("RCUTILS_COLORIZED_OUTPUT", "0")
+    return env
