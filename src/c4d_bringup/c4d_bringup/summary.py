@@ -7,7 +7,8 @@ FlightSummary accumulates while the flight runs:
 - tracking error: distance between each position setpoint and the estimated position at the
   moment the setpoint arrives (max and RMS, while armed and in the air);
 - executor overruns: ticks and overruns of the GNC core between the first and last report;
-- failsafes: every distinct failsafe (action, reason) that health reported.
+- failsafes: every distinct failsafe (action, event) that health reported, with the first
+  reason and how many times it was raised; WARN-level events are listed apart as warnings.
 """
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ class FlightSummary:
     first_stats: tuple[int, int] | None = None  # (ticks_total, overruns_total)
     last_stats: tuple[int, int] | None = None
     load_max_percent: float = 0.0
-    failsafes: list[tuple[str, str]] = field(default_factory=list)
+    failsafes: dict[tuple[str, str], list] = field(default_factory=dict)  # (action, event) -> [first reason, count]
+    _last_failsafe: tuple[str, str] | None = None
     _position: tuple[float, float, float] | None = None
     _anchor: tuple[float, float, float] | None = None
     _armed: bool = False
@@ -75,11 +77,20 @@ class FlightSummary:
         self.load_max_percent = max(self.load_max_percent, load_max_percent)
 
     def on_failsafe(self, action: str, reason: str) -> None:
+        """Feed every health summary; a (action, event) counts again only after it changed."""
         if action.upper() in ("", "NONE"):
+            self._last_failsafe = None
             return
-        entry = (action, reason)
-        if entry not in self.failsafes:
-            self.failsafes.append(entry)
+        key = (action.upper(), reason.split(":", 1)[0].strip())
+        if key == self._last_failsafe:
+            return
+        self._last_failsafe = key
+        entry = self.failsafes.setdefault(key, [reason, 0])
+        entry[1] += 1
+
+    def _failsafe_text(self, warnings: bool) -> str:
+        chosen = [(k, v) for k, v in self.failsafes.items() if (k[0] == "WARN") == warnings]
+        return "; ".join(f"{a} {reason}" + (f" (x{n})" if n > 1 else "") for (a, _), (reason, n) in chosen) or "none"
 
     @property
     def duration_s(self) -> float | None:
@@ -114,8 +125,8 @@ class FlightSummary:
             f"tracking   max {self.max_tracking_error_m:.2f} m, RMS {self.rms_tracking_error_m:.2f} m "
             f"({self.tracking_samples} setpoints)",
             f"overruns   {self.overruns}{share}",
-            "failsafes  " + ("none" if not self.failsafes else
-                             "; ".join(f"{a}: {r}" if r else a for a, r in self.failsafes)),
+            f"failsafes  {self._failsafe_text(False)}",
+            f"warnings   {self._failsafe_text(True)}",
         ]
         out += [f"{k:<10} {v}" for k, v in paths.items()]
         return out
@@ -136,7 +147,8 @@ def progress_line(elapsed: float, mission: tuple[int, int, int, float] | None, p
         parts.append("mission -")
     else:
         state, item, total, progress = mission
-        parts.append(f"{MISSION_STATES.get(state, str(state)):<9} item {item + 1:>2}/{total:<2} {100 * progress:5.1f} %")
+        parts.append(f"{MISSION_STATES.get(state, str(state)):<9} item {min(item + 1, total):>2}/{total:<2} "
+                     f"{100 * progress:5.1f} %")
     if position is not None:
         parts.append(f"E {position[0]:6.1f} N {position[1]:6.1f} U {position[2]:5.1f} m")
     if battery_percent is not None and math.isfinite(battery_percent):
