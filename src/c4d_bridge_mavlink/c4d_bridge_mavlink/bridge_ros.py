@@ -210,12 +210,12 @@ class RosSide:
                                              KeyValue(key="since_heartbeat_s", value=f"{link.since_heartbeat_s or -1:.2f}")]))
         for name, endpoint in router.endpoints.items():
             st, ls = endpoint.stats, schedulers[name].link_stats(now)
-            worst = max((r.max_delay_fraction for r in schedulers[name].stream_stats()), default=0.0)
+            worst = max((r.max_delay_ratio for r in schedulers[name].stream_stats()), default=0.0)
             values = {"rx_bytes": st.rx_bytes, "tx_bytes": st.tx_bytes, "rx_frames": st.rx_frames, "tx_frames": st.tx_frames,
                       "rx_errors": st.rx_errors, "unsigned_rejected": st.errors.get("unsigned", 0),
                       "bad_signature": st.errors.get("bad_signature", 0), "telemetry_bytes_s": f"{ls.bytes_per_second:.0f}",
                       "utilisation": f"{ls.utilisation:.3f}", "queue_drops": ls.dropped,
-                      "max_delay_fraction": f"{worst:.3f}"}
+                      "max_delay_ratio": f"{worst:.3f}", "queue_max_bytes": ls.queue_max_bytes}
             array.status.append(status_t(level=status_t.OK, name=f"bridge/endpoint {name}", hardware_id=name,
                                          message="ok", values=[KeyValue(key=k, value=str(v)) for k, v in values.items()]))
         self.pub_stats.publish(array)

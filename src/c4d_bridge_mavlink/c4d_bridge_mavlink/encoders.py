@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 from c4d_gnc import quat
 
-from .frames import attitude_to_ned, compass_heading_deg, enu_to_ned, flu_to_frd, px4_custom_mode
+from .frames import NAV_GOTO, NAV_MISSION, attitude_to_ned, compass_heading_deg, enu_to_ned, flu_to_frd, px4_custom_mode
 from .signing import mavlink
 
 M = mavlink
@@ -83,8 +83,11 @@ def heartbeat(s: Snapshot) -> M.MAVLink_heartbeat_message:
     status = M.MAV_STATE_STANDBY
     if s.armed:
         status = M.MAV_STATE_CRITICAL if s.failsafe >= 2 else M.MAV_STATE_ACTIVE
+    nav = s.nav_state
+    if nav == NAV_GOTO and s.mission_state == M.MISSION_STATE_ACTIVE:
+        nav = NAV_MISSION  # the mission node flies plans through the core's go-to interface
     return M.MAVLink_heartbeat_message(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_PX4, base,
-                                       px4_custom_mode(s.flight_mode, s.nav_state), status, 3)
+                                       px4_custom_mode(s.flight_mode, nav), status, 3)
 
 
 def sys_status(s: Snapshot) -> M.MAVLink_sys_status_message:

@@ -43,7 +43,7 @@ class Vehicle:
 
 @dataclass
 class Output:
-    requests: list[tuple[str, float]] = field(default_factory=list)  # ("takeoff", alt) | ("goto", 0) | ("land", 0)
+    requests: list[tuple[str, float]] = field(default_factory=list)  # ("takeoff", alt) | ("goto" | "land" | "hold", 0)
     setpoint: tuple[Vec, Vec, float] | None = None  # position, velocity feed-forward, yaw
     reached: list[int] = field(default_factory=list)
 
@@ -153,6 +153,8 @@ class MissionExecutor:
             return out
         if self.current >= len(self.plan.items):
             self.status = MissionStatus.COMPLETED
+            if v.armed and v.in_air:  # a plan ending in the air: hold here, not at the go-to's start
+                out.requests.append(("hold", 0.0))
             return out
         item = self.plan.items[self.current]
         kind = item.type

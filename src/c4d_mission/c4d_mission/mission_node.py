@@ -25,7 +25,7 @@ from .plan import GLOBAL, Geofence, Item, Plan, PlanError, load_plan
 from .validation import VehicleLimits, check_goto, leg_inside, validate
 
 RESULT_ACCEPTED, RESULT_TEMPORARILY_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED, RESULT_FAILED = 0, 1, 2, 3, 4
-CORE = {"takeoff": 3, "goto": 8, "land": 4}
+CORE = {"takeoff": 3, "goto": 8, "land": 4, "hold": 6}
 
 
 def main(argv: list[str] | None = None) -> int:
