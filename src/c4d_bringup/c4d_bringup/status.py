@@ -45,9 +45,8 @@ def render(expected: list[str], present: set[str], latest: dict, domain: str) ->
                  f"{x.load_max_percent:.1f} %, jitter p99 {x.release_jitter_p99_us:.0f} us, overruns {x.overruns} "
                  f"(total {x.overruns_total} of {x.ticks_total} ticks), cpu {x.cpu_percent:.0f} %")
     m = latest.get("mission")
-    lines.append("mission   no mission/state" if m is None else
-                 f"mission   {MISSION_STATES.get(m.state, '?')}, item {m.current_item + 1}/{m.total_items}, "
-                 f"{100 * m.progress:.0f} %")
+    lines.append("mission   no mission/state" if m is None else f"mission   {MISSION_STATES.get(m.state, '?')}" + (
+        f", item {min(m.current_item + 1, m.total_items)}/{m.total_items}, {100 * m.progress:.0f} %" if m.total_items else ""))
     h = key_values(latest.get("health"))
     lines.append("health    no health/summary" if not h else
                  f"health    {latest['health'].message or 'ok'}; failsafe {h.get('failsafe', '?')}"
