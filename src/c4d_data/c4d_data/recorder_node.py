@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
         ("output_dir", "flights"), ("prefix", "flight"), ("include", [""]), ("exclude", [""]),
         ("auto_arm", True), ("status_topic", "vehicle/status"), ("pre_roll_s", 1.0), ("post_roll_s", 1.0),
         ("max_queue_messages", 200000), ("max_queue_bytes", 256 << 20), ("chunk_size", 1 << 20),
-        ("max_chunk_age_s", 1.0), ("compression", "zstd"), ("fsync", False), ("queue_depth", 1000),
+        ("max_chunk_age_s", 1.0), ("compression", "zstd"), ("fsync", False), ("queue_depth", 5000),
         ("discovery_period_s", 0.5), ("drain_period_s", 0.005), ("niceness", 5))}
     try:
         include = [re.compile(x) for x in p["include"] if x]
