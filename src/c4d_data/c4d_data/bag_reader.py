@@ -18,13 +18,14 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+import zstandard
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, Header, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
 MAGIC = b"\x89MCAP0\r\n"
-_READ_ERRORS = (McapError, struct.error, EOFError, ValueError, OSError, UnicodeDecodeError)
+_READ_ERRORS = (McapError, struct.error, EOFError, ValueError, OSError, UnicodeDecodeError, zstandard.ZstdError)
 
 
 class BagError(Exception):
@@ -107,7 +108,7 @@ def _scan(path: Path) -> Iterator[tuple[str, Any]]:
     """Linear read of every record up to the first damaged one: ('header'|'schema'|'channel'|
     'message'|'metadata'|'end'|'problem', record)."""
     with path.open("rb") as f:
-        records = StreamReader(f, record_size_limit=1 << 30).records
+        records = StreamReader(f, validate_crcs=True, record_size_limit=1 << 30).records
         while True:
             try:
                 record = next(records)
@@ -189,7 +190,7 @@ def iter_messages(contents: BagContents, topics: Iterable[str] | None = None,
     if contents.complete:
         with contents.path.open("rb") as f:
             try:
-                for _, channel, message in make_reader(f).iter_messages(
+                for _, channel, message in make_reader(f, validate_crcs=True).iter_messages(
                         topics=None if wanted is None else sorted(wanted), log_time_order=log_time_order):
                     yield by_id[channel.id], message
             except _READ_ERRORS as exc:

@@ -73,9 +73,13 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a file-size limit must surface as EFBIG, not kill us
     logger = node.get_logger()
 
-    def log(level: str, text: str) -> None:
-        {"info": logger.info, "warn": logger.warning, "error": logger.error}[level](text)
-        if level == "error":
+    def log(level: str, text: str) -> None:  # one call site per severity (rclpy's logger insists)
+        if level == "info":
+            logger.info(text)
+        elif level == "warn":
+            logger.warning(text)
+        else:
+            logger.error(text)
             print(f"recorder: error: {text}", file=sys.stderr, flush=True)
 
     config = RecorderConfig(output_dir, p["prefix"], p["pre_roll_s"], p["post_roll_s"], p["max_queue_messages"],
