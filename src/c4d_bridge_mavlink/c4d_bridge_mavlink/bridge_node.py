@@ -144,8 +144,8 @@ def main(argv: list[str] | None = None) -> int:
                 ack(M.MAV_RESULT_DENIED, str(exc))
         elif action.kind == "request":
             reply = one_shot(action.fields["msg_id"])
-            ack(M.MAV_RESULT_ACCEPTED if reply is not None else M.MAV_RESULT_DENIED,
-                "" if reply is not None else "message not available")
+            # DENIED without a STATUSTEXT: GCSs probe many optional messages; no log noise for each
+            ack(M.MAV_RESULT_ACCEPTED if reply is not None else M.MAV_RESULT_DENIED)
             if reply is not None:
                 router.send(reply)
 
