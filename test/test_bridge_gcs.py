@@ -1,8 +1,8 @@
 """A scripted ground station (pymavlink, MAVLink 2 over UDP) against the whole SITL graph with
 the bridge: parameters (full download, set, out-of-bounds rejection, persistence), a 100-item
 mission upload/download round trip, a rejected plan, commands in the wrong state, message
-intervals, then arm → take-off → mission → hover, and a ground-link loss → RTL → land, with the
-acks and the mode reports a GCS sees."""
+intervals, then arm → take-off → mission → hover, pilot override (STABILIZED + MANUAL_CONTROL), and
+a ground-link loss → RTL → land, with the acks and the mode reports a GCS sees."""
 
 from __future__ import annotations
 
@@ -226,6 +226,24 @@ def test_scripted_gcs_session(graph):
     position = gcs.recv("GLOBAL_POSITION_INT", 5.0)
     east, north, _ = home.to_enu(position.lat / 1e7, position.lon / 1e7, home.altitude)
     assert math.hypot(east - 0.0, north - 6.0) < 1.5 and position.relative_alt == pytest.approx(5000, abs=600)
+
+    # --- pilot override: STABILIZED, MANUAL_CONTROL roll stick 30 % → ~9° roll, then back to hold
+    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 7, 0).result == M.MAV_RESULT_ACCEPTED
+    assert gcs.recv("HEARTBEAT", 5.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "STABILIZED") is not None
+    rolls = []
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 1.5:
+        gcs.conn.mav.manual_control_send(1, 0, 300, 500, 0, 0)
+        att = gcs.recv("ATTITUDE", 0.05)
+        if att is not None and time.monotonic() - t0 > 0.7:
+            rolls.append(math.degrees(att.roll))
+    assert rolls and 6.0 <= sum(rolls) / len(rolls) <= 12.0, rolls  # 30 % of the 30° full stick, FRD roll right
+    report.append(f"MANUAL_CONTROL roll 30 % → {sum(rolls) / len(rolls):.1f}° roll")
+    for _ in range(10):
+        gcs.conn.mav.manual_control_send(1, 0, 0, 500, 0, 0)
+        time.sleep(0.05)
+    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 3).result == M.MAV_RESULT_ACCEPTED
+    assert gcs.recv("HEARTBEAT", 5.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.LOITER") is not None
 
     # --- ground link lost: health sees no GCS heartbeat for 3 s, policy RTL after 5 s more
     gcs.beating = False

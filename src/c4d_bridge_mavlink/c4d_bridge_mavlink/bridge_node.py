@@ -7,7 +7,9 @@ endpoint, and take ROS work with a zero-timeout spin. The 500 Hz vehicle state i
 would use (vehicle/command, mission/upload, mission/control, <node>/set_parameters), so the
 bridge adds no authority of its own.
 
-Parameters: endpoints (["udpin:127.0.0.1:14550"]), sysid (0 = SYSID_THISMAV), udp_rate_bytes_s
+MANUAL_CONTROL (pilot sticks) becomes an ATTITUDE / RATE-level guidance/setpoint while the core is
+in that mode (manual.py). Parameters: endpoints (["udpin:127.0.0.1:14550"]), sysid (0 = SYSID_THISMAV),
+airframe (quad_x: the thrust stick's centre is its hover command), udp_rate_bytes_s
 (UDP link budget for the telemetry scheduler), config (stream intervals YAML), param_file
 (persisted MAVLink parameters), signing_key_file ("" = signing off).
 Topics out: bridge/gcs_heartbeat (std_msgs/Header per GCS heartbeat; health's link_topic),
@@ -95,6 +97,13 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("udp_rate_bytes_s must be >= 1000")
     except (ValueError, SigningError) as exc:
         return node_runtime.fail("bridge", str(exc), node)
+    airframe = node.declare_parameter("airframe", "quad_x").value
+    try:
+        from c4d_gnc.airframe import AirframeError, default_airframe_path, load_airframe
+
+        hover = load_airframe(default_airframe_path(airframe)).hover_command  # centre of the pilot's thrust stick
+    except (AirframeError, OSError) as exc:
+        return node_runtime.fail("bridge", f"airframe '{airframe}': {exc}", node)
     ros = RosSide(node)
     params = ParamServer(lambda m: router.send(m), Path(param_file) if param_file else None, apply=ros.set_node_parameter)
     for problem in params.load_errors:
@@ -175,6 +184,8 @@ def main(argv: list[str] | None = None) -> int:
                     params.handle(msg)
                 elif kind in ("COMMAND_LONG", "COMMAND_INT"):
                     handle_command(msg)
+                elif kind == "MANUAL_CONTROL" and msg.target == sysid:
+                    ros.manual_control(msg, time.monotonic(), hover)
             now = time.monotonic()
             for name, sched in schedulers.items():
                 for frame in sched.advance(now):

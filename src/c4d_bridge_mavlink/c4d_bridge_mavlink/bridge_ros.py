@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+from c4d_gnc import quat
 from c4d_gnc.geodesy import GeoOrigin
 from c4d_gnc.ros_drain import LatestSampler
 from c4d_mission.mavlink_items import item_from_mavlink, item_to_mavlink
@@ -56,6 +57,10 @@ class RosSide:
         node.create_subscription(CaptureEvent, "payload/captures", self._on_capture, 10)
         node.create_subscription(ExecutorStats, "gnc/executor_stats", self._on_stats, 10)
         self.pub_heartbeat = node.create_publisher(Header, "bridge/gcs_heartbeat", best)
+        from c4d_interfaces.msg import GuidanceSetpoint
+
+        self.pub_pilot = node.create_publisher(GuidanceSetpoint, "guidance/setpoint", best)
+        self.pilot_state = {"yaw": math.nan, "t": -math.inf, "ignored": 0, "used": 0}
         self.pub_stats = node.create_publisher(DiagnosticArray, "bridge/link_stats", 10)
         self.vehicle = node.create_client(VehicleCommand, "vehicle/command")
         self.upload = node.create_client(UploadMission, "mission/upload")
@@ -321,3 +326,34 @@ class RosSide:
                 self.statustext(M.MAV_SEVERITY_WARNING, f"{spec.name} not applied: {why}")
 
         self._call(self._param_client(spec.node), request, done)
+
+    def manual_control(self, msg, now: float, hover: float) -> None:
+        """Pilot sticks → guidance/setpoint at the ATTITUDE or RATE level, only in those modes
+        (the core ignores other levels there, and other modes ignore pilot setpoints)."""
+        from c4d_interfaces.msg import GuidanceSetpoint
+
+        from .manual import pilot_setpoint
+
+        snap, st = self.snapshot, self.pilot_state
+        mode = {1: "rate", 2: "attitude"}.get(snap.flight_mode)
+        if mode is None or snap.orientation is None:
+            st["ignored"] += 1
+            return
+        if now - st["t"] > 0.5 or not math.isfinite(st["yaw"]):  # (re)entering manual: hold the current heading
+            st["yaw"] = quat.yaw_of(snap.orientation)
+        dt = min(0.1, max(0.0, now - st["t"]))
+        st["t"] = now
+        sp = pilot_setpoint(msg.x, msg.y, msg.z, msg.r, mode, st["yaw"], hover)
+        st["yaw"] = math.remainder(st["yaw"] + sp.yaw_rate * dt, math.tau)
+        out = GuidanceSetpoint(control_level=GuidanceSetpoint.LEVEL_ATTITUDE if mode == "attitude" else
+                               GuidanceSetpoint.LEVEL_RATE, yaw=math.nan, yaw_rate=float(sp.yaw_rate), thrust=float(sp.thrust),
+                               max_horizontal_speed=math.nan, max_vertical_speed=math.nan)
+        out.header.stamp = self.node.get_clock().now().to_msg()
+        out.header.frame_id = "map"
+        out.position.x = out.position.y = out.position.z = math.nan
+        out.velocity.x = out.velocity.y = out.velocity.z = math.nan
+        out.acceleration.x = out.acceleration.y = out.acceleration.z = math.nan
+        out.orientation.w, out.orientation.x, out.orientation.y, out.orientation.z = sp.orientation
+        out.body_rate.x, out.body_rate.y, out.body_rate.z = sp.body_rate
+        self.pub_pilot.publish(out)
+        st["used"] += 1

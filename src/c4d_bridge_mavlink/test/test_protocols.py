@@ -239,3 +239,20 @@ def test_fuzz_100k_hostile_frames_no_crash_no_state_change(tmp_path):
     assert stats.rx_bytes == sent_bytes  # every datagram reached the parser
     assert handled > 10_000 and errors > 30_000
     assert nacks["param"] > 0 and nacks["command"] > 0 and nacks["mission"] > 0
+
+
+def test_pilot_sticks_to_setpoints():
+    from c4d_bridge_mavlink.manual import MAX_RATE, MAX_TILT, pilot_setpoint, stick_thrust
+
+    sp = pilot_setpoint(x=500, y=1000, z=500, r=0, mode="attitude", yaw=0.3, hover=0.4)
+    roll, pitch, yaw = quat.to_euler(sp.orientation)
+    assert roll == pytest.approx(MAX_TILT) and pitch == pytest.approx(MAX_TILT / 2) and yaw == pytest.approx(0.3)
+    nose = quat.rotate(sp.orientation, (1.0, 0.0, 0.0))
+    assert nose[2] < 0  # forward stick: nose down
+    assert sp.thrust == pytest.approx(0.4) and stick_thrust(0, 0.4) == 0.0 and stick_thrust(1000, 0.4) == 1.0
+    assert stick_thrust(750, 0.4) == pytest.approx(0.7) and stick_thrust(float("nan"), 0.4) == pytest.approx(0.4)
+    right = pilot_setpoint(0, 0, 500, 1000, "attitude", 0.0, 0.4)
+    assert right.yaw_rate < 0  # yaw right = clockwise = negative ENU yaw rate
+    rate = pilot_setpoint(0, -1000, 500, 0, "rate", 0.0, 0.4)
+    assert rate.level == "rate" and rate.body_rate[0] == pytest.approx(-MAX_RATE)
+    assert pilot_setpoint(float("inf"), 5000, -3, 0, "attitude", 0.0, 0.4).thrust == 0.0  # clamped, never NaN
