@@ -9,6 +9,7 @@ protocol modules stay ROS-free and the loop stays readable.
 from __future__ import annotations
 
 import math
+import time
 
 from c4d_gnc import quat
 from c4d_gnc.geodesy import GeoOrigin
@@ -40,10 +41,7 @@ class RosSide:
         from c4d_interfaces.srv import MissionControl, UploadMission, VehicleCommand
 
         self.node = node
-        self.snapshot = Snapshot()
-        import time
-
-        self.snapshot.boot_s = time.monotonic()
+        self.snapshot = Snapshot(boot_s=time.monotonic())
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         best = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
         self.state = LatestSampler(rclpy.create_node("_bridge_samples"), VehicleState, "navigation/state", best)
@@ -269,8 +267,7 @@ class RosSide:
                 M.MAV_MISSION_ACCEPTED if r == 0 else M.MAV_MISSION_DENIED))
         home_alt = self.snapshot.home[2] if self.snapshot.home else None
         try:
-            plan_items = tuple(item_from_mavlink(i.command, {M.MAV_FRAME_GLOBAL_INT: 5, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: 6}
-                                                 .get(i.frame, i.frame), i.params, home_alt, where=f"item {k}")
+            plan_items = tuple(item_from_mavlink(i.command, i.frame, i.params, home_alt, where=f"item {k}")
                                for k, i in enumerate(items))
         except PlanError as exc:
             self.statustext(M.MAV_SEVERITY_WARNING, str(exc))
