@@ -52,3 +52,14 @@ def test_progress_line():
     line = progress_line(12.34, (4, 3, 3, 1.0), (1.0, -2.0, 3.5), 0.97, "disarmed AUTO/-")
     assert line == "[  12.3 s]  COMPLETED item  3/3  100.0 %  E    1.0 N   -2.0 U   3.5 m  batt  97 %  disarmed AUTO/-"
     assert "batt" not in progress_line(0.0, None, None, math.nan, "-")
+
+
+def test_status_waits_for_every_node_and_what_it_shows():
+    from c4d_bringup.status import complete
+
+    expected = ["sim", "core", "payload"]
+    full = {"status": 1, "stats": 1, "battery": 1}
+    assert complete(expected, {"sim", "core", "payload", "c4d_status_1"}, full)
+    assert not complete(expected, {"sim", "core"}, full)  # payload not discovered yet
+    assert not complete(expected, {"sim", "core", "payload"}, {"status": 1, "battery": 1})  # no executor stats yet
+    assert complete(["payload", "bridge"], {"payload", "bridge"}, {})  # nodes with nothing on the screen

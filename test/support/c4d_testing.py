@@ -31,13 +31,35 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ["C4D_TEST_RUN"] = RUN_TOKEN
 
 
+LOG_TAIL_LINES = 25
+_groups_created: list[ProcessGroup] = []  # every group of this session, in creation order
+
+
 class ProcessGroup:
-    """Processes started by one test or fixture; stop() ends them all (SIGINT, then SIGKILL)."""
+    """Processes started by one test or fixture; stop() ends them all (SIGINT, then SIGKILL).
+
+    When a test fails, the tail of every log of the groups created during its setup or call is
+    attached to the failure report (see pytest_runtest_makereport): a whole-graph failure on a
+    CI machine then shows what each node said, not only the assertion."""
 
     def __init__(self, log_dir: Path, env: dict[str, str]) -> None:
         self.log_dir = log_dir
         self.env = env
         self.procs: list[tuple[subprocess.Popen, Path]] = []
+        self.stopped = False
+        _groups_created.append(self)
+
+    def log_tails(self, lines: int = LOG_TAIL_LINES) -> str:
+        """The last `lines` lines of every process log of this group, one block per process."""
+        blocks = []
+        for proc, log in self.procs:
+            try:
+                text = log.read_text(errors="replace").splitlines()[-lines:]
+            except FileNotFoundError:
+                text = ["(log missing)"]
+            state = "running" if proc.poll() is None else f"exit {proc.returncode}"
+            blocks.append(f"--- {log.stem} (pid {proc.pid}, {state}) ---\n" + "\n".join(text))
+        return "\n".join(blocks)
 
     def spawn(self, name: str, argv: list[str], **env_overrides: str) -> subprocess.Popen:
         log = self.log_dir / f"{name}.log"
@@ -57,6 +79,7 @@ class ProcessGroup:
 
     def stop(self, timeout: float = 10.0) -> dict[int, int]:
         """Interrupt every process group, wait, kill what is left; return pid -> exit code."""
+        self.stopped = True
         for proc, _ in self.procs:
             if proc.poll() is None:
                 _signal_group(proc.pid, signal.SIGINT)
@@ -79,15 +102,18 @@ def _signal_group(pgid: int, sig: int) -> None:
         pass
 
 
-def leftover_processes(token: str) -> list[tuple[int, str]]:
-    """(pid, command line) of live processes, other than this one, carrying `token`."""
+def leftover_processes(token: str, domain_id: int | None = None) -> list[tuple[int, str]]:
+    """(pid, command line) of live processes, other than this one, carrying `token` (and, when
+    given, running in ROS domain `domain_id`)."""
     found = []
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit() or int(entry.name) == os.getpid():
             continue
         try:
-            environ = (entry / "environ").read_bytes()
-            if f"C4D_TEST_RUN={token}".encode() not in environ.split(b"\0"):
+            environ = (entry / "environ").read_bytes().split(b"\0")
+            if f"C4D_TEST_RUN={token}".encode() not in environ:
+                continue
+            if domain_id is not None and f"ROS_DOMAIN_ID={domain_id}".encode() not in environ:
                 continue
             state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
             if state == "Z":
@@ -99,12 +125,36 @@ def leftover_processes(token: str) -> list[tuple[int, str]]:
     return found
 
 
+_domains_used: set[int] = set()
+
+
+def _kill_all(leftovers: list[tuple[int, str]]) -> None:
+    for pid, _ in leftovers:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
 @pytest.fixture(scope="module")
-def ros_domain_id() -> Iterator[int]:
-    """A ROS_DOMAIN_ID private to this test module (machine-wide lock)."""
-    lease = ros_domain.acquire()
+def ros_domain_id(request: pytest.FixtureRequest) -> Iterator[int]:
+    """A ROS_DOMAIN_ID private to this test module (machine-wide lock, never one an earlier module
+    of this session used). At module end, a process of this run still in the domain is killed and
+    the module errors, naming it: a straggler can neither leak into the next module's graph nor
+    go unattributed."""
+    lease = ros_domain.acquire(avoid=_domains_used)
+    _domains_used.add(lease.domain_id)
     try:
         yield lease.domain_id
+        leftovers = []
+        for _ in range(50):  # processes signalled at teardown may still be exiting: allow 5 s
+            leftovers = leftover_processes(RUN_TOKEN, lease.domain_id)
+            if not leftovers:
+                break
+            time.sleep(0.1)
+        _kill_all(leftovers)
+        assert not leftovers, (f"{request.module.__name__} left {len(leftovers)} process(es) running in ROS domain "
+                               f"{lease.domain_id} (killed now): " + "; ".join(f"pid {p}: {c}" for p, c in leftovers))
     finally:
         lease.release()
 
@@ -140,15 +190,31 @@ def processes(ros_env: dict[str, str], tmp_path: Path) -> Iterator[ProcessGroup]
         group.stop()
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    item.stash[_FIRST_GROUP] = len(_groups_created)
+
+
+_FIRST_GROUP = pytest.StashKey[int]()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+    report = yield
+    if report.failed and report.when in ("setup", "call"):
+        # groups created for this test, and longer-lived (module) groups still running
+        first = item.stash.get(_FIRST_GROUP, len(_groups_created))
+        for index, group in enumerate(_groups_created):
+            if group.procs and (index >= first or not group.stopped):
+                report.sections.append((f"c4d process logs ({group.log_dir.name})", group.log_tails()))
+    return report
+
+
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     leftovers = leftover_processes(RUN_TOKEN)
     if not leftovers:
         return
-    for pid, _ in leftovers:
-        try:
-            os.kill(pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
+    _kill_all(leftovers)
     lines = "\n".join(f"  pid {pid}: {cmd}" for pid, cmd in leftovers)
     session.config.pluginmanager.get_plugin("terminalreporter").write_line(
         f"c4d_testing: tests left {len(leftovers)} process(es) running (killed now):\n{lines}",

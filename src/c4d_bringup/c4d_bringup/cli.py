@@ -48,7 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument("--no-report", action="store_true", help="skip the analysis report")
     status = sub.add_parser("status", help="one screen of the live graph")
     status.add_argument("--config", type=Path, help=config_help)
-    status.add_argument("--wait", type=float, default=3.0, help="seconds to listen before printing (default 3)")
+    status.add_argument("--wait", type=float, default=5.0,
+                        help="listen at most this many seconds for every node to show up (default 5)")
     return parser
 
 

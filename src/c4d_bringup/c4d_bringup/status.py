@@ -1,7 +1,10 @@
 """`c4d status`: one screen of the live graph (nodes alive, mode, position, battery, executor load).
 
-Listens for `wait_s` seconds in the current ROS_DOMAIN_ID, then prints. Exit 0 when every node
-of the system config is alive, 1 otherwise (so scripts can wait on it).
+Listens in the current ROS_DOMAIN_ID until every node of the system config has been discovered
+and each of them has published what the screen shows (or `wait_s` seconds have passed), then
+prints. Exit 0 when every node is alive, 1 otherwise (so scripts can wait on it). Returning as
+soon as the picture is complete keeps it quick on an idle machine and still right on a loaded one,
+where DDS discovery of a whole graph can take seconds.
 """
 
 from __future__ import annotations
@@ -13,6 +16,16 @@ import sys
 from .ros_link import key_values
 from .summary import FLIGHT_MODES, LANDED, MISSION_STATES, NAV_STATES
 from .system_config import SystemConfig
+
+# what each node contributes to the screen: `latest` keys that must be filled before printing early
+SHOWN_BY_NODE = {"core": ("status", "stats"), "navigation": ("odometry",), "sim": ("battery",),
+                 "mission": ("mission",), "health": ("health",), "recorder": ("recorder",)}
+
+
+def complete(expected: list[str], present: set[str], latest: dict) -> bool:
+    """True when every expected node is discovered and has published what the screen shows."""
+    return all(n in present for n in expected) and all(
+        key in latest for n in expected for key in SHOWN_BY_NODE.get(n, ()))
 
 
 def render(expected: list[str], present: set[str], latest: dict, domain: str) -> tuple[list[str], bool]:
@@ -65,7 +78,7 @@ def status(config: SystemConfig, wait_s: float, out=sys.stdout) -> int:
 
     link = GraphLink("c4d_status")
     try:
-        link.spin(wait_s)
+        link.spin(wait_s, until=lambda: complete(config.names, link.node_names(), link.latest))
         present = link.node_names()
         lines, all_up = render(config.names, present, link.latest, os.environ.get("ROS_DOMAIN_ID", "0"))
     finally:
