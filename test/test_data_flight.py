@@ -81,7 +81,8 @@ def flights(ros_node, ros_env, tmp_path_factory):
             return future.result()
 
         ready = VehicleState.VALID_ORIGIN | VehicleState.VALID_POSITION_XY | VehicleState.VALID_ATTITUDE
-        assert spin(40, lambda: world["state"] is not None and world["state"].valid & ready == ready)
+        assert spin(40, lambda: world["state"] is not None and world["state"].valid & ready == ready
+                    and world["status"] is not None and world["mission"] is not None)
         assert spin(10, lambda: world["recorder"] is not None and int(world["recorder"]["topics"]) >= 20)
         # flight 1: take off, hold, land
         for _ in range(10):
@@ -103,7 +104,8 @@ def flights(ros_node, ros_env, tmp_path_factory):
         spin(1.0)
         start = call(control, MissionControl.Request(action=MissionControl.Request.ACTION_START))
         assert start.result == MissionControl.Response.RESULT_ACCEPTED, start.message
-        assert spin(60, lambda: world["mission"].state == MissionState.STATE_COMPLETED and not world["status"].armed)
+        assert spin(60, lambda: world["mission"].state == MissionState.STATE_COMPLETED and not world["status"].armed), \
+            (world["mission"], world["status"], world["state"].position if world["state"] else None)
         assert spin(10, lambda: world["recorder"]["files"] == "2" and world["recorder"]["state"] == "idle")
     finally:
         for sub in subs:

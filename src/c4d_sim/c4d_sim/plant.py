@@ -7,8 +7,10 @@ first-order lag (exact discretisation), f_cmd = u_i·f_max·health_i (health 1 =
 air-relative velocity (wind). Torques: r_i × f_i ẑ, propeller reaction ±k_m f_i, angular drag;
 Euler's equation I ω̇ = τ − ω × Iω. Semi-implicit Euler with the quaternion integrated by the
 exponential map; step sizes of 0.5–2 ms are accurate for these time constants.
-Ground (z = 0): while the thrust cannot lift the weight the vehicle rests level, motionless,
-keeping its heading; that is how take-off and landing behave in tests.
+Ground (z = 0): a descent reaching it is braked by the landing gear at TOUCHDOWN_DECELERATION
+(the gear compresses a few millimetres, then the vehicle stands at z = 0); while the thrust
+cannot lift the weight the vehicle rests level, motionless, keeping its heading; that is how
+take-off and landing behave in tests.
 The accelerometer's specific force (what an IMU measures) is kept for the sensor models.
 """
 
@@ -21,6 +23,10 @@ from c4d_gnc import quat
 from c4d_gnc.airframe import GRAVITY, Airframe
 
 GROUND_LEVELING_TAU_S = 0.05  # [s] how fast the ground levels a vehicle that touched down tilted
+# [m/s²] deceleration of a descent by the compressing landing gear: a 0.7 m/s touchdown stops in
+# ~18 ms (6 mm of travel), well inside a 16 g accelerometer's range, as on a real airframe; a rigid
+# stop within one 1 ms physics step would read ~70 g and be clipped or rejected as implausible
+TOUCHDOWN_DECELERATION = 40.0
 
 Vec = tuple[float, float, float]
 
@@ -37,6 +43,33 @@ class PlantState:
     specific_force: Vec = (0.0, 0.0, GRAVITY)  # body frame, what an accelerometer reads
     thrusts: list[float] = field(default_factory=list)
     on_ground: bool = True
+    # ∫ specific force dt (3), ∫ angular velocity dt (3), ∫ dt since the IMU last read them
+    imu_integrals: list[float] = field(default_factory=lambda: [0.0] * 7)
+
+    def take_imu_means(self) -> tuple[Vec, Vec]:
+        """Mean specific force and angular velocity since the previous call, and restart the means.
+
+        Why: a real IMU samples at kHz and low-pass filters/decimates to its output rate, so a
+        short impulse (the ground stopping a touchdown within one physics step) is in its output.
+        Sampling only the instant of the output would miss it whenever the impulse falls between
+        two samples — and always when several physics steps run at once after a stall — and an
+        inertial estimator would then believe the vehicle keeps descending on the ground."""
+        acc = self.imu_integrals
+        if acc[6] <= 0.0:
+            return self.specific_force, self.angular_velocity
+        means = ((acc[0] / acc[6], acc[1] / acc[6], acc[2] / acc[6]), (acc[3] / acc[6], acc[4] / acc[6], acc[5] / acc[6]))
+        acc[:] = [0.0] * 7
+        return means
+
+    def _accumulate_imu(self, dt: float) -> None:
+        acc, f, w = self.imu_integrals, self.specific_force, self.angular_velocity
+        acc[0] += f[0] * dt
+        acc[1] += f[1] * dt
+        acc[2] += f[2] * dt
+        acc[3] += w[0] * dt
+        acc[4] += w[1] * dt
+        acc[5] += w[2] * dt
+        acc[6] += dt
 
 
 class MultirotorPlant:
@@ -94,16 +127,21 @@ class MultirotorPlant:
             s.angular_acceleration = (0.0, 0.0, 0.0)
             s.specific_force = quat.rotate_inverse(s.orientation, (stop[0], stop[1], stop[2] + GRAVITY))
             s.t += dt
+            s._accumulate_imu(dt)
             return s
         v = (vx + acc[0] * dt, vy + acc[1] * dt, vz + acc[2] * dt)
         p = (px + v[0] * dt, py + v[1] * dt, pz + v[2] * dt)
         w = (wx + ax_ * dt, wy + ay_ * dt, wz + az_ * dt)
         q = quat.integrate(s.orientation, w, dt)
         on_ground = False
-        if p[2] <= 0.0:  # touchdown: the ground stops the vertical motion
+        if p[2] <= 0.0 and v[2] < 0.0:  # touchdown: the landing gear brakes the descent
+            braked = min(0.0, vz + TOUCHDOWN_DECELERATION * dt) if vz < 0.0 else 0.0
+            p = (p[0], p[1], pz + braked * dt)
+            v = (v[0], v[1], braked)
+            on_ground = braked == 0.0
+        if p[2] <= 0.0 and v[2] >= 0.0:  # at rest on (or pushed off) the extended gear
             p = (p[0], p[1], 0.0)
-            v = (v[0], v[1], 0.0) if v[2] < 0 else v
-            on_ground = v[2] <= 0.0
+            on_ground = on_ground or v[2] == 0.0
         # what an accelerometer measures is the actual velocity change (contact impulse included)
         acc = ((v[0] - vx) / dt, (v[1] - vy) / dt, (v[2] - vz) / dt)
         s.position, s.velocity, s.orientation, s.angular_velocity = p, v, q, w
@@ -112,6 +150,7 @@ class MultirotorPlant:
         s.specific_force = quat.rotate_inverse(q, (acc[0], acc[1], acc[2] + GRAVITY))
         s.on_ground = on_ground
         s.t += dt
+        s._accumulate_imu(dt)
         return s
 
 

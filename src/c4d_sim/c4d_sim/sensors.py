@@ -26,6 +26,10 @@ RANGE_MIN = 0.05  # [m] minimum range of the downward range finder
 EARTH_FIELD_ENU: Vec = (0.0, 2.2e-5, -4.2e-5)  # [T] ~ mid-latitude: 22 µT north, 42 µT down
 
 
+def _clip(value: float, full_scale: float) -> float:
+    return max(-full_scale, min(full_scale, value))
+
+
 class SensorConfigError(ValueError):
     """Invalid sensor configuration (names the field)."""
 
@@ -39,6 +43,8 @@ class SensorConfig:
     accel_noise: float = 0.05  # [m/s²] per sample
     accel_bias_walk: float = 1e-3  # [m/s²/√s]
     accel_bias_initial: float = 0.05
+    accel_range: float = 156.9  # [m/s²] full scale (±16 g): readings beyond it are clipped, as a MEMS part does
+    gyro_range: float = 34.9  # [rad/s] full scale (±2000 °/s)
     gps_rate_hz: float = 10.0
     gps_noise_horizontal: float = 0.3  # [m] σ
     gps_noise_vertical: float = 0.5
@@ -67,7 +73,7 @@ class SensorConfig:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise SensorConfigError(f"sensors: field '{key}' must be a non-negative number, got {value!r}")
         for key in ("imu_rate_hz", "gps_rate_hz", "baro_rate_hz", "mag_rate_hz", "range_rate_hz", "battery_rate_hz",
-                    "battery_capacity_ah", "range_max"):
+                    "battery_capacity_ah", "range_max", "accel_range", "gyro_range"):
             if key in doc and doc[key] <= 0:
                 raise SensorConfigError(f"sensors: field '{key}' must be > 0")
         if "battery_cells" in doc:
@@ -144,13 +150,15 @@ class SensorSuite:
         c, f = self.config, self.faults
         self._walk(self.gyro_bias, c.gyro_bias_walk, dt)
         self._walk(self.accel_bias, c.accel_bias_walk, dt)
+        specific_force, angular_velocity = s.take_imu_means()  # filtered over the sample interval
         if f.imu_dropout:
             return None
         if f.imu_freeze and self._last_imu is not None:
             return ImuSample(s.t, self._last_imu.gyro, self._last_imu.accel, self._last_imu.orientation)
         g = self.rng.gauss
-        gyro = tuple(s.angular_velocity[k] + self.gyro_bias[k] + g(0, c.gyro_noise) for k in range(3))
-        accel = tuple(s.specific_force[k] + self.accel_bias[k] + g(0, c.accel_noise) for k in range(3))
+        gyro = tuple(_clip(angular_velocity[k] + self.gyro_bias[k] + g(0, c.gyro_noise), c.gyro_range) for k in range(3))
+        accel = tuple(_clip(specific_force[k] + self.accel_bias[k] + g(0, c.accel_noise), c.accel_range)
+                      for k in range(3))
         sample = ImuSample(s.t, gyro, accel, s.orientation)  # type: ignore[arg-type]
         self._last_imu = sample
         return sample

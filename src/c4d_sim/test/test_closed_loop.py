@@ -167,3 +167,31 @@ def test_tilted_touchdown_is_levelled_at_a_rate_the_gyro_sees():
     roll, pitch, yaw = quat.to_euler(plant.state.orientation)
     assert abs(roll) < 1e-3 and abs(pitch) < 1e-3 and abs(yaw - 0.7) < 0.01
     assert math.degrees(quat.angle_between(integrated, plant.state.orientation)) < 0.05
+
+
+@pytest.mark.parametrize("steps_per_imu_sample", [2, 7])  # 1 kHz physics / 500 Hz IMU; a stalled sim
+def test_touchdown_is_braked_by_the_gear_and_seen_whole_by_the_imu(steps_per_imu_sample):
+    """A 3 m/s free-fall touchdown: the landing gear stops it within a 16 g accelerometer's range
+    and a few centimetres of travel, then the vehicle stands at z = 0; and the vertical velocity
+    integrated from the IMU's specific force (the mean over each sample interval, whatever the
+    physics steps per sample) comes back to zero as the truth does — an estimator integrating
+    the IMU must not believe the vehicle still descends on the ground."""
+    from c4d_gnc.airframe import default_airframe_path, load_airframe
+    from c4d_sim.plant import GRAVITY, MultirotorPlant
+
+    airframe = load_airframe(default_airframe_path("quad_x"))
+    plant = MultirotorPlant(airframe, (0.0, 0.0, 0.5))
+    plant.state.on_ground = False
+    dt, velocity_from_imu, fastest, lowest, peak = 0.001, 0.0, 0.0, 0.0, 0.0
+    plant.state.take_imu_means()
+    for step in range(1, 1401):
+        plant.step(dt, [0.0] * len(airframe.motors), False)
+        fastest, lowest = min(fastest, plant.state.velocity[2]), min(lowest, plant.state.position[2])
+        if step % steps_per_imu_sample == 0:
+            force, rate = plant.state.take_imu_means()
+            peak = max(peak, abs(force[2]))
+            velocity_from_imu += (force[2] - GRAVITY) * steps_per_imu_sample * dt
+            assert rate == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)
+    assert plant.state.on_ground and plant.state.velocity == (0.0, 0.0, 0.0) and plant.state.position[2] == 0.0
+    assert fastest < -3.0 and -0.15 < lowest < 0.0 and peak < 16 * GRAVITY
+    assert velocity_from_imu == pytest.approx(0.0, abs=1e-9)
