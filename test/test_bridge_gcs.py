@@ -6,8 +6,10 @@ a ground-link loss → RTL → land, with the acks and the mode reports a GCS se
 
 from __future__ import annotations
 
+import itertools
 import math
 import socket
+import statistics
 import threading
 import time
 
@@ -78,6 +80,22 @@ class Gcs:
         p = list(params) + [0.0] * (7 - len(params))
         self.conn.mav.command_long_send(1, 1, command, 0, *p)
         return self.recv("COMMAND_ACK", timeout, lambda m: m.command == command)
+
+    def story(self, last: int = 25) -> str:
+        """What the vehicle said lately (mode changes, STATUSTEXT, acks), for failure messages."""
+        lines, mode = [], None
+        for t, m in self.seen:
+            kind = m.get_type()
+            if kind == "HEARTBEAT" and m.get_srcSystem() == 1:
+                now = f"{self.mode_of(m)} {'armed' if m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED else 'disarmed'}"
+                if now != mode:
+                    lines.append(f"{t:.1f} mode {now}")
+                    mode = now
+            elif kind == "STATUSTEXT":
+                lines.append(f"{t:.1f} text {m.text}")
+            elif kind in ("COMMAND_ACK", "MISSION_ACK"):
+                lines.append(f"{t:.1f} {kind} {m.to_dict()}")
+        return "vehicle story (monotonic s):\n" + "\n".join(lines[-last:])
 
     def mode_of(self, hb) -> str:
         from c4d_bridge_mavlink.frames import mode_name
@@ -160,11 +178,14 @@ def test_scripted_gcs_session(graph):
 
     # --- message interval, capabilities, wrong-state and unknown commands
     assert gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 20_000).result == M.MAV_RESULT_ACCEPTED
-    t0, n = time.monotonic(), 0
+    t0, arrivals = time.monotonic(), []
     while time.monotonic() - t0 < 2.0:
-        n += gcs.recv("ATTITUDE", 0.5) is not None
-    report.append(f"ATTITUDE at {n / 2.0:.0f} Hz after SET_MESSAGE_INTERVAL 50 Hz")
-    assert 40 <= n / 2.0 <= 60, n
+        if gcs.recv("ATTITUDE", 0.5) is not None:
+            arrivals.append(time.monotonic())
+    # the median interval: the configured rate took effect (robust to a stall of this shared machine)
+    median_ms = 1000 * statistics.median(b - a for a, b in itertools.pairwise(arrivals))
+    report.append(f"ATTITUDE every {median_ms:.1f} ms (median, {len(arrivals)} in 2 s) after SET_MESSAGE_INTERVAL 50 Hz")
+    assert 15.0 <= median_ms <= 25.0, (median_ms, len(arrivals))
     assert gcs.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION).result == M.MAV_RESULT_ACCEPTED
     version = gcs.recv("AUTOPILOT_VERSION", 5.0)
     needed = (M.MAV_PROTOCOL_CAPABILITY_MISSION_INT | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
@@ -212,12 +233,13 @@ def test_scripted_gcs_session(graph):
         if ack.result == M.MAV_RESULT_ACCEPTED:
             break
         time.sleep(1.0)
-    assert ack.result == M.MAV_RESULT_ACCEPTED
+    assert ack.result == M.MAV_RESULT_ACCEPTED, gcs.story()
     assert gcs.recv("HEARTBEAT", 30.0, lambda m: m.get_srcSystem() == 1 and m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
-                    and gcs.mode_of(m) == "AUTO.LOITER") is not None
-    assert gcs.recv("EXTENDED_SYS_STATE", 5.0, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR) is not None
-    assert gcs.command(M.MAV_CMD_MISSION_START, 1, 3).result == M.MAV_RESULT_ACCEPTED
-    assert gcs.recv("HEARTBEAT", 10.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.MISSION") is not None
+                    and gcs.mode_of(m) == "AUTO.LOITER") is not None, gcs.story()
+    assert gcs.recv("EXTENDED_SYS_STATE", 5.0, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR) is not None, gcs.story()
+    assert gcs.command(M.MAV_CMD_MISSION_START, 1, 3).result == M.MAV_RESULT_ACCEPTED, gcs.story()
+    assert gcs.recv("HEARTBEAT", 10.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.MISSION") is not None, \
+        gcs.story()
     reached = set()
     while 3 not in reached:
         msg = gcs.recv("MISSION_ITEM_REACHED", 60.0)
@@ -225,11 +247,14 @@ def test_scripted_gcs_session(graph):
         reached.add(msg.seq)
     position = gcs.recv("GLOBAL_POSITION_INT", 5.0)
     east, north, _ = home.to_enu(position.lat / 1e7, position.lon / 1e7, home.altitude)
-    assert math.hypot(east - 0.0, north - 6.0) < 1.5 and position.relative_alt == pytest.approx(5000, abs=600)
+    assert math.hypot(east - 0.0, north - 6.0) < 1.5 and position.relative_alt == pytest.approx(5000, abs=600), \
+        (east, north, position.relative_alt, gcs.story())
 
     # --- pilot override: STABILIZED, MANUAL_CONTROL roll stick 30 % → ~9° roll, then back to hold
-    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 7, 0).result == M.MAV_RESULT_ACCEPTED
-    assert gcs.recv("HEARTBEAT", 5.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "STABILIZED") is not None
+    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 7, 0).result == M.MAV_RESULT_ACCEPTED, \
+        gcs.story()
+    assert gcs.recv("HEARTBEAT", 5.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "STABILIZED") is not None, \
+        gcs.story()
     rolls = []
     t0 = time.monotonic()
     while time.monotonic() - t0 < 1.5:
@@ -242,8 +267,10 @@ def test_scripted_gcs_session(graph):
     for _ in range(10):
         gcs.conn.mav.manual_control_send(1, 0, 0, 500, 0, 0)
         time.sleep(0.05)
-    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 3).result == M.MAV_RESULT_ACCEPTED
-    assert gcs.recv("HEARTBEAT", 5.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.LOITER") is not None
+    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 3).result == M.MAV_RESULT_ACCEPTED, \
+        gcs.story()
+    assert gcs.recv("HEARTBEAT", 5.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.LOITER") is not None, \
+        gcs.story()
 
     # --- ground link lost: health sees no GCS heartbeat for 3 s, policy RTL after 5 s more
     gcs.beating = False
@@ -257,5 +284,5 @@ def test_scripted_gcs_session(graph):
     landed = gcs.recv("HEARTBEAT", 60.0, lambda m: m.get_srcSystem() == 1 and not m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
     assert landed is not None, "did not land and disarm after RTL"
     modes = [gcs.mode_of(m) for _, m in gcs.seen if m.get_type() == "HEARTBEAT" and m.get_srcSystem() == 1]
-    assert "AUTO.LAND" in modes
+    assert "AUTO.LAND" in modes, gcs.story()
     print("\n" + "\n".join(report))
