@@ -1,8 +1,9 @@
 """`ros2 run c4d_health health` — monitors, diagnostics, failsafe requests.
 
 Monitors (10 Hz): node liveliness (each watched node's periodic topic silent longer than
-`node_timeout_s`), GNSS health (perception/health), estimator validity (navigation/state),
-battery state of charge (sensors/battery), geofence (mission/plan against the position),
+`node_timeout_s` of the monitor's own running time: liveness.py), GNSS health
+(perception/health), estimator validity (navigation/state), battery state of charge
+(sensors/battery), geofence (mission/plan against the position),
 ground link (a heartbeat topic, when `link_topic` is set), executor overruns
 (gnc/executor_stats). Publishes `diagnostics` (DiagnosticArray, 1 Hz, one status per monitor)
 and `health/summary` (DiagnosticStatus: overall level, active events, failsafe action and
@@ -20,8 +21,10 @@ from pathlib import Path
 from c4d_gnc.geodesy import GeoOrigin
 from c4d_gnc.ros_drain import LatestSampler
 
+from .liveness import LivenessMonitor
 from .policy import Action, FailsafeArbiter, FailsafePolicy, PolicyError
 
+TICK_S = 0.1  # monitor period
 WATCHED = {  # node: topic that proves it alive (>= 5 Hz)
     "core": "vehicle/status",
     "navigation": "navigation/odometry",
@@ -72,15 +75,17 @@ def main(argv: list[str] | None = None) -> int:
     pub_summary = node.create_publisher(DiagnosticStatus, "health/summary", latched)
     mission_cmd = node.create_client(VehicleCommand, "vehicle/command")
     core_cmd = node.create_client(VehicleCommand, "gnc/command")
-    w: dict = {"seen": {}, "state": None, "status": None, "battery": None, "plan": None, "gps": None, "overruns": None,
+    w: dict = {"dead": [], "state": None, "status": None, "battery": None, "plan": None, "gps": None, "overruns": None,
                "overruns_new": 0, "link": None, "requested": Action.NONE, "last_diag": 0.0}
 
     def now() -> float:
         return node.get_clock().now().nanoseconds * 1e-9
 
+    liveness = LivenessMonitor(watched, policy.node_timeout_s, TICK_S, now())
+
     def seen(name: str):
         def mark(msg) -> None:
-            w["seen"][name] = now()
+            liveness.heard(name, now())
         return mark
 
     for name, topic in watched.items():
@@ -111,11 +116,8 @@ def main(argv: list[str] | None = None) -> int:
     node.create_subscription(ExecutorStats, "gnc/executor_stats", on_stats, 10)
     if link_topic:
         node.create_subscription(Header, link_topic, lambda m: w.__setitem__("link", now()), best)
-    start = now()
-
-    def events(t: float) -> dict[str, str]:
+    def events(t: float, dead: list[str]) -> dict[str, str]:
         active: dict[str, str] = {}
-        dead = [n for n in watched if t - w["seen"].get(n, start) > policy.node_timeout_s]
         if dead:
             active["node_dead"] = ", ".join(sorted(dead))
         if w["gps"] is not None and w["gps"][0] != DiagnosticStatus.OK:
@@ -154,8 +156,7 @@ def main(argv: list[str] | None = None) -> int:
         if action not in commands:
             return
         command, mode = commands[action]
-        client = mission_cmd if mission_cmd.service_is_ready() and "mission" not in events(now()).get("node_dead", "") \
-            else core_cmd
+        client = mission_cmd if mission_cmd.service_is_ready() and "mission" not in w["dead"] else core_cmd
         if client is core_cmd and action == Action.RTL:
             command = 4  # RTL needs the mission node: land instead
         future = client.call_async(VehicleCommand.Request(command=command, mode=mode, force=True))
@@ -180,7 +181,8 @@ def main(argv: list[str] | None = None) -> int:
         if not armed and arbiter.action != Action.NONE:
             arbiter.reset()
             w["requested"] = Action.NONE
-        active = events(t)
+        w["dead"] = liveness.dead(t)
+        active = events(t, w["dead"])
         action = arbiter.update(t, active, in_air)
         if action > w["requested"]:
             w["requested"] = action
@@ -205,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
                                                      message=active.get(event, "ok")))
             pub_diag.publish(array)
 
-    node.create_timer(0.1, tick)
+    node.create_timer(TICK_S, tick)
     return node_runtime.spin_node(node, events_executor=False)
 
 
