@@ -11,7 +11,7 @@ import subprocess
 import time
 
 import pytest
-from c4d_testing import ProcessGroup, installed_executable, spin_for
+from c4d_testing import ProcessGroup, installed_executable, sample_latest, spin_for
 
 NODES = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "navigation", []),
          ("c4d_gnc", "core", ["--ros-args", "-p", "rt_priority:=50"]), ("c4d_mission", "mission", []),
@@ -51,16 +51,15 @@ def flights(ros_node, ros_env, tmp_path_factory):
     out, captures = tmp_path_factory.mktemp("flights"), tmp_path_factory.mktemp("captures")
     group = ProcessGroup(tmp_path_factory.mktemp("graph"), ros_env)
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    world: dict = {"state": None, "status": None, "mission": None, "recorder": None, "edges": []}
+    world: dict = {"status": None, "mission": None, "recorder": None, "edges": []}
 
     def on_status(m):
         if world["status"] is not None and m.armed != world["status"].armed:
             world["edges"].append((m.armed, time.time_ns()))
         world["status"] = m
 
-    subs = [node.create_subscription(VehicleState, "navigation/state", lambda m: world.__setitem__("state", m),
-                                     QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)),
-            node.create_subscription(VehicleStatus, "vehicle/status", on_status, latched),
+    state = sample_latest(node, VehicleState, "navigation/state")
+    subs = [node.create_subscription(VehicleStatus, "vehicle/status", on_status, latched),
             node.create_subscription(MissionState, "mission/state", lambda m: world.__setitem__("mission", m), latched),
             node.create_subscription(DiagnosticStatus, "recorder/status",
                                      lambda m: world.__setitem__("recorder", recorder_status(m)), latched)]
@@ -81,7 +80,7 @@ def flights(ros_node, ros_env, tmp_path_factory):
             return future.result()
 
         ready = VehicleState.VALID_ORIGIN | VehicleState.VALID_POSITION_XY | VehicleState.VALID_ATTITUDE
-        assert spin(40, lambda: world["state"] is not None and world["state"].valid & ready == ready
+        assert spin(40, lambda: state.latest() is not None and state.latest().valid & ready == ready
                     and world["status"] is not None and world["mission"] is not None)
         assert spin(10, lambda: world["recorder"] is not None and int(world["recorder"]["topics"]) >= 20)
         # flight 1: take off, hold, land
@@ -105,7 +104,7 @@ def flights(ros_node, ros_env, tmp_path_factory):
         start = call(control, MissionControl.Request(action=MissionControl.Request.ACTION_START))
         assert start.result == MissionControl.Response.RESULT_ACCEPTED, start.message
         assert spin(60, lambda: world["mission"].state == MissionState.STATE_COMPLETED and not world["status"].armed), \
-            (world["mission"], world["status"], world["state"].position if world["state"] else None)
+            (world["mission"], world["status"], state.latest().position if state.latest() else None)
         assert spin(10, lambda: world["recorder"]["files"] == "2" and world["recorder"]["state"] == "idle")
     finally:
         for sub in subs:

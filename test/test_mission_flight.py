@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 
 import pytest
-from c4d_testing import installed_executable, spin_for
+from c4d_testing import installed_executable, sample_latest, spin_for
 
 from c4d_gnc.geodesy import GeoOrigin
 
@@ -44,7 +44,7 @@ def test_survey_mission(graph):
     captures_dir = procs.pop("captures_dir")
     best = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    world = {"truth": None, "state": None, "status": None, "mission": None, "reached": {}}
+    world = {"truth": None, "status": None, "mission": None, "reached": {}}
 
     def on_mission(m):
         world["mission"] = m
@@ -54,7 +54,7 @@ def test_survey_mission(graph):
     node.create_subscription(Odometry, "sim/ground_truth",
                              lambda m: world.__setitem__("truth", (m.pose.pose.position.x, m.pose.pose.position.y,
                                                                    m.pose.pose.position.z)), best)
-    node.create_subscription(VehicleState, "navigation/state", lambda m: world.__setitem__("state", m), best)
+    state = sample_latest(node, VehicleState, "navigation/state")
     node.create_subscription(VehicleStatus, "vehicle/status", lambda m: world.__setitem__("status", m), latched)
     node.create_subscription(MissionState, "mission/state", on_mission, latched)
     captured: list = []
@@ -73,7 +73,7 @@ def test_survey_mission(graph):
         return future.result()
 
     ready = VehicleState.VALID_ORIGIN | VehicleState.VALID_POSITION_XY
-    assert spin(40, lambda: world["state"] is not None and world["state"].valid & ready == ready)
+    assert spin(40, lambda: state.latest() is not None and state.latest().valid & ready == ready)
     survey = load_plan(ROOT / "missions" / "survey.yaml")
     outside = plan_from_yaml_text((ROOT / "missions" / "survey.yaml").read_text().replace("east: 20, north: 20",
                                                                                           "east: 300, north: 20"))
@@ -100,7 +100,7 @@ def test_survey_mission(graph):
     assert spin(180, lambda: world["mission"] is not None and world["mission"].state == MissionState.STATE_COMPLETED), \
         (world["mission"], group.log_of(procs["mission"])[-2000:])
     assert spin(10, lambda: world["status"] is not None and not world["status"].armed)
-    origin = world["state"].origin
+    origin = state.latest().origin
     home = GeoOrigin(origin.latitude, origin.longitude, origin.altitude)
     misses = []
     for k, item in enumerate(survey.items):

@@ -264,3 +264,22 @@ def spin_for(executor, seconds: float, until=None, watch: tuple[ProcessGroup, di
             for name, proc in procs.items():
                 assert proc.poll() is None, f"{name} died:\n{group.log_of(proc)}"
     return until is None
+
+
+_samplers: list = []
+
+
+def sample_latest(node, msg_type, topic: str):
+    """A c4d_gnc LatestSampler of `topic` on a hidden side node in `node`'s context: `.latest()`
+    is the newest sample. For 500 Hz topics a test only looks at now and then — subscribing
+    through the executor would burn a fifth of a core in the test process, CPU the graph under
+    test needs on a 2-core machine."""
+    import rclpy
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from c4d_gnc.ros_drain import LatestSampler
+
+    side = rclpy.create_node(f"_c4d_test_samples_{len(_samplers)}", context=node.context)
+    sampler = LatestSampler(side, msg_type, topic, QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+    _samplers.append((side, sampler))  # keep the side node alive as long as the context
+    return sampler
