@@ -6,7 +6,9 @@ blackboard), (2) the latch hook (flight-mode requests take effect here, never mi
 (3) the tasks due at k in schedule order, (4) the output phase, then accounts the tick and
 sleeps to the next deadline. After an overrun there is no burst catch-up: ticks whose
 deadline already passed are skipped and counted, and the tick index keeps following time so
-phases stay aligned. Why: this is the Paparazzi / ArduPilot / thesis main loop, and the only
+phases stay aligned. Tasks named in `catch_up` (e.g. a simulator's sensor samples, which a real
+sensor would never skip) whose release fell on skipped ticks run once at the next executed
+tick, in schedule order, instead of being lost. Why: this is the Paparazzi / ArduPilot / thesis main loop, and the only
 way to get deterministic, low-jitter control inside a ROS 2 process (PLATFORM.md: rclpy
 timers jitter by hundreds of µs and drift).
 The clock is injectable: tests use FakeClock to check order, phases and accounting exactly.
@@ -86,10 +88,16 @@ class CyclicExecutive:
         report_period_s: float = 1.0,
         on_report: Callable[[ExecutorReport], None] | None = None,
         manage_gc: bool = False,
+        catch_up: frozenset[str] | set[str] = frozenset(),
     ) -> None:
         missing = [t.name for t in schedule.tasks if t.name not in tasks]
         if missing:
             raise ValueError(f"no function for scheduled task(s): {', '.join(missing)}")
+        unknown = set(catch_up) - {t.name for t in schedule.tasks}
+        if unknown:
+            raise ValueError(f"catch_up names unknown task(s): {', '.join(sorted(unknown))}")
+        self.catch_up = tuple(t for t in schedule.tasks if t.name in catch_up)
+        self._pending: set[str] = set()  # catch-up tasks whose release was skipped
         self.schedule = schedule
         self.functions = dict(tasks)
         self.clock = clock or MonotonicClock()
@@ -147,7 +155,12 @@ class CyclicExecutive:
         if self.latch:
             self.latch(k)
         functions = self.functions
-        for task in self.due(k):
+        due = self.due(k)
+        if self._pending:
+            due_names = {t.name for t in due} | self._pending
+            due = tuple(t for t in self.schedule.tasks if t.name in due_names)
+            self._pending = set()
+        for task in due:
             t_start = clock.now_ns()
             functions[task.name](k)
             self.profiler.task_ran(task.name, t_start, clock.now_ns())
@@ -159,6 +172,10 @@ class CyclicExecutive:
         next_tick = k + 1
         if overrun:  # no burst catch-up: resume at the first deadline still ahead
             next_tick = (end - self.t0_ns) // self.tick_ns + 1
+            for task in self.catch_up:  # ... but a catch-up task released in between runs once there
+                first_release = k + 1 + (task.phase - (k + 1)) % task.divider
+                if first_release < next_tick:
+                    self._pending.add(task.name)
         self.profiler.tick_done(start - deadline, end - start, overrun, next_tick - k - 1)
         self.tick = next_tick
         if self.manage_gc:

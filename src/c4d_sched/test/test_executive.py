@@ -138,3 +138,31 @@ def test_bad_executive_config():
         parse_config({"tasks": [{"name": "a", "divider": 1}]})
     with pytest.raises(ScheduleConfigError, match="phase_method"):
         parse_config({"phase_method": "best", "tasks": [{"name": "a", "divider": 1, "budget_us": 1}]})
+
+
+@pytest.mark.parametrize("catch_up", [frozenset(), frozenset({"slow", "beat"})])
+def test_catch_up_tasks_released_on_skipped_ticks_run_once_at_the_next_tick(catch_up):
+    schedule = schedule_from_config({"tick_hz": 1000, "tasks": [
+        {"name": "a", "group": "control", "rate_hz": 1000, "budget_us": 100},
+        {"name": "slow", "group": "default", "divider": 4, "phase": 1, "budget_us": 100},    # ticks 1, 5, 9
+        {"name": "beat", "group": "default", "divider": 5, "phase": 4, "budget_us": 100},    # ticks 4, 9
+        {"name": "other", "group": "default", "divider": 10, "phase": 5, "budget_us": 100}]})  # tick 5
+    clock = FakeClock()
+    runs = []
+
+    def make(name):
+        def fn(k):
+            runs.append((k, name))
+            clock.advance(2_500_000 if (k, name) == (3, "a") else 10_000)  # tick 3 overruns: 4, 5 skipped
+        return fn
+
+    ex = CyclicExecutive(schedule, {t.name: make(t.name) for t in schedule.tasks}, clock, report_period_s=100,
+                         catch_up=catch_up)
+    ex.start(t0_ns=0)
+    ex.run(max_ticks=10)
+    at_6 = sorted(name for k, name in runs if k == 6)
+    assert at_6 == (["a", "beat", "slow"] if catch_up else ["a"])  # 'other' is not a catch-up task: lost
+    assert [k for k, name in runs if name == "slow"] == ([1, 6, 9] if catch_up else [1, 9])
+    assert ex.profiler.skipped_total == 2
+    with pytest.raises(ValueError, match="unknown task"):
+        CyclicExecutive(schedule, {t.name: make(t.name) for t in schedule.tasks}, clock, catch_up={"nope"})
