@@ -116,10 +116,11 @@ def main(argv: list[str] | None = None) -> int:
     node.create_subscription(ExecutorStats, "gnc/executor_stats", on_stats, 10)
     if link_topic:
         node.create_subscription(Header, link_topic, lambda m: w.__setitem__("link", now()), best)
+
     def events(t: float, dead: list[str]) -> dict[str, str]:
         active: dict[str, str] = {}
         if dead:
-            active["node_dead"] = ", ".join(sorted(dead))
+            active["node_dead"] = ", ".join(dead)  # sorted by the monitor
         if w["gps"] is not None and w["gps"][0] != DiagnosticStatus.OK:
             active["gps_loss"] = f"GNSS {w['gps'][1]}"
         s = w["state"]

@@ -8,9 +8,10 @@ sleeps to the next deadline. After an overrun there is no burst catch-up: ticks 
 deadline already passed are skipped and counted, and the tick index keeps following time so
 phases stay aligned. Tasks named in `catch_up` (e.g. a simulator's sensor samples, which a real
 sensor would never skip) whose release fell on skipped ticks run once at the next executed
-tick, in schedule order, instead of being lost. Why: this is the Paparazzi / ArduPilot / thesis main loop, and the only
-way to get deterministic, low-jitter control inside a ROS 2 process (PLATFORM.md: rclpy
-timers jitter by hundreds of µs and drift).
+tick, in schedule order, instead of being lost.
+Why: this is the Paparazzi / ArduPilot / thesis main loop, and the only way to get
+deterministic, low-jitter control inside a ROS 2 process (PLATFORM.md: rclpy timers jitter by
+hundreds of µs and drift).
 The clock is injectable: tests use FakeClock to check order, phases and accounting exactly.
 """
 
