@@ -11,7 +11,7 @@ import subprocess
 import time
 
 import pytest
-from c4d_testing import ProcessGroup, installed_executable, sample_latest, spin_for
+from c4d_testing import ProcessGroup, call_service, installed_executable, sample_latest, spin_for
 
 NODES = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "navigation", []),
          ("c4d_gnc", "core", ["--ros-args", "-p", "rt_priority:=50"]), ("c4d_mission", "mission", []),
@@ -73,11 +73,7 @@ def flights(ros_node, ros_env, tmp_path_factory):
                                                      "-p", f"output_dir:={out}"])
         spin = functools.partial(spin_for, executor, watch=(group, procs))
 
-        def call(client, request):
-            assert client.wait_for_service(timeout_sec=30)
-            future = client.call_async(request)
-            assert spin(15, future.done)
-            return future.result()
+        call = functools.partial(call_service, spin)
 
         ready = VehicleState.VALID_ORIGIN | VehicleState.VALID_POSITION_XY | VehicleState.VALID_ATTITUDE
         assert spin(40, lambda: state.latest() is not None and state.latest().valid & ready == ready

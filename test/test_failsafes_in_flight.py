@@ -13,7 +13,7 @@ import signal
 import time
 
 import pytest
-from c4d_testing import installed_executable, spin_for
+from c4d_testing import call_service, installed_executable, spin_for
 
 NODES = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "navigation", []),
          ("c4d_gnc", "core", ["--ros-args", "-p", "rt_priority:=50"]), ("c4d_mission", "mission", []),
@@ -81,10 +81,7 @@ class Flight:
         return self.summaries[-1][1] if self.summaries else {}
 
     def call(self, client, request):
-        assert client.wait_for_service(timeout_sec=30)
-        future = client.call_async(request)
-        assert self.spin(15, future.done)
-        return future.result()
+        return call_service(self.spin, client, request)
 
     def fault(self, name: str, value) -> None:
         from rcl_interfaces.srv import SetParameters

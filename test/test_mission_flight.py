@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 
 import pytest
-from c4d_testing import installed_executable, sample_latest, spin_for
+from c4d_testing import call_service, installed_executable, sample_latest, spin_for
 
 from c4d_gnc.geodesy import GeoOrigin
 
@@ -66,11 +66,7 @@ def test_survey_mission(graph):
 
     spin = functools.partial(spin_for, executor, watch=(group, procs))
 
-    def call(client, request):
-        assert client.wait_for_service(timeout_sec=30)
-        future = client.call_async(request)
-        assert spin(15, future.done)
-        return future.result()
+    call = functools.partial(call_service, spin)
 
     ready = VehicleState.VALID_ORIGIN | VehicleState.VALID_POSITION_XY
     assert spin(40, lambda: state.latest() is not None and state.latest().valid & ready == ready)

@@ -283,3 +283,12 @@ def sample_latest(node, msg_type, topic: str):
     sampler = LatestSampler(side, msg_type, topic, QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
     _samplers.append((side, sampler))  # keep the side node alive as long as the context
     return sampler
+
+
+def call_service(spin, client, request, wait_s: float = 30.0, reply_s: float = 15.0):
+    """Call a ROS service from a test: wait for the server, send, spin (`spin(seconds, until)`,
+    e.g. a partial of spin_for) until the reply; fail the test if either does not come."""
+    assert client.wait_for_service(timeout_sec=wait_s), f"service {client.srv_name} not available"
+    future = client.call_async(request)
+    assert spin(reply_s, future.done), f"no reply from {client.srv_name} in {reply_s} s"
+    return future.result()
