@@ -208,8 +208,11 @@ class MissionExecutor:
 
     def _fly(self, now: float, dt: float, target: Vec, radius: float, v: Vehicle, out: Output, yaw: float = math.nan) -> bool:
         if self._tracker is None:
-            if v.core_nav != 4:  # NAV_GOTO: the core follows our setpoints
-                out.requests.append(("goto", 0.0))
+            # Every new leg asks the core to follow our setpoints (NAV_GOTO), even when the reported
+            # navigation state already says GOTO: that report can be stale. A "hold" sent just before
+            # (a plan ending in the air, then an RTL or go-to commanded at once) is still in flight, and
+            # requests reach the core in order, so only a later "goto" is sure to be the one it keeps.
+            out.requests.append(("goto", 0.0))
             self._tracker = LegTracker(v.position, target, self.speed)
             dx, dy = target[0] - v.position[0], target[1] - v.position[1]
             self._yaw = yaw if math.isfinite(yaw) else (math.atan2(dy, dx) if math.hypot(dx, dy) > 1.0 else v.yaw)

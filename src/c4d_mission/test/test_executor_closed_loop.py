@@ -96,3 +96,50 @@ def test_refused_requests_are_retried_then_the_mission_aborts():
         assert executor.step(last, 0.02, grounded).requests == [("takeoff", 5.0)]
     executor.request_rejected("takeoff", "navigation state is stale")
     assert executor.status == MissionStatus.ABORTED and "stale" in executor.last_error
+
+
+def test_rtl_commanded_right_after_a_plan_ends_in_the_air_is_flown_despite_a_stale_status():
+    """The race CI met with MAVSDK: a plan ending in the air completes and asks the core to hold; an
+    RTL commanded at once starts while the vehicle status still reports NAV_GOTO (the hold is in
+    flight). The RTL's first leg must still ask for GOTO, after the hold, or the core holds forever."""
+    from c4d_mission.plan import Item, Plan
+
+    config = yaml.safe_load((default_airframe_path("quad_x").parent.parent / "core.yaml").read_text())["executive"]
+    loop = ClosedLoop(load_airframe(default_airframe_path("quad_x")), config, seed=3)
+    executor, rtl = MissionExecutor(), MissionExecutor()
+    executor.load(Plan((Item("takeoff", z=5.0), Item("waypoint", x=4.0, y=3.0, z=5.0))), HOME)
+    assert executor.start() == ""
+
+    def vehicle() -> Vehicle:
+        s, out = loop.plant.state, loop.core.out
+        return Vehicle(s.position, out.armed, out.landed not in (Landed.ON_GROUND,), int(out.nav), quat.yaw_of(s.orientation))
+
+    def send(requests) -> None:
+        for name, value in requests:
+            ok, reason = loop.core.request(Request(Command[name.upper()], altitude=value))
+            assert ok, (name, reason)
+
+    dt = 0.02
+    while executor.status == MissionStatus.ACTIVE and loop.t < 60.0:
+        result = executor.step(loop.t, dt, stale := vehicle())
+        send(result.requests)
+        if result.setpoint is not None:
+            loop.core.inputs.setpoint = Setpoint(loop.t, Level.POSITION, *result.setpoint[:2], yaw=result.setpoint[2])
+        if executor.status == MissionStatus.ACTIVE:
+            loop.run(dt)
+    assert executor.status == MissionStatus.COMPLETED and result.requests == [("hold", 0.0)]
+    assert stale.core_nav == 4  # the snapshot the RTL starts from still says GOTO
+
+    rtl.load(Plan((Item("rtl"),), rtl_altitude=8.0), HOME)
+    rtl.start()
+    first = rtl.step(loop.t, dt, stale)
+    assert first.requests == [("goto", 0.0)]  # queued after the hold: the core ends up following the RTL
+    send(first.requests)
+    while rtl.status == MissionStatus.ACTIVE and loop.t < 120.0:
+        loop.core.inputs.setpoint = None if first.setpoint is None else Setpoint(
+            loop.t, Level.POSITION, *first.setpoint[:2], yaw=first.setpoint[2])
+        loop.run(dt)
+        first = rtl.step(loop.t, dt, vehicle())
+        send(first.requests)
+    assert rtl.status == MissionStatus.COMPLETED, (rtl.status, loop.plant.state.position)
+    assert not loop.core.out.armed and math.hypot(*loop.plant.state.position[:2]) < 1.0
