@@ -107,7 +107,7 @@ class MissionExecutor:
             return "no plan loaded"
         if not 0 <= item < len(self.plan.items):
             return f"item {item} does not exist"
-        self.current, self._phase, self.status = item, "start", MissionStatus.ACTIVE
+        self.current, self._phase, self.status, self._tracker = item, "start", MissionStatus.ACTIVE, None
         return ""
 
     def pause(self) -> str:
@@ -119,7 +119,9 @@ class MissionExecutor:
     def resume(self) -> str:
         if self.status != MissionStatus.PAUSED:
             return "mission is not paused"
-        self.status, self._phase = MissionStatus.ACTIVE, "start"
+        # a fresh leg from where the vehicle is now (it held, or flew a go-to, meanwhile): no jump back
+        # to the interrupted leg's setpoint, and the new leg asks the core for GOTO again
+        self.status, self._phase, self._tracker = MissionStatus.ACTIVE, "start", None
         return ""
 
     def request_rejected(self, name: str, reason: str, max_retries: int = 10) -> None:

@@ -30,9 +30,36 @@ def point_along(path, s):
     return path[-1]
 
 
+class Sitl:
+    """The deterministic closed loop (plant + core) with the mission node's adapters: the vehicle
+    snapshot executors see, their requests to the core, their setpoints."""
+
+    def __init__(self) -> None:
+        config = yaml.safe_load((default_airframe_path("quad_x").parent.parent / "core.yaml").read_text())["executive"]
+        self.loop = ClosedLoop(load_airframe(default_airframe_path("quad_x")), config, seed=3)
+
+    def vehicle(self) -> Vehicle:
+        s, out = self.loop.plant.state, self.loop.core.out
+        return Vehicle(s.position, out.armed, out.landed not in (Landed.ON_GROUND,), int(out.nav), quat.yaw_of(s.orientation))
+
+    def send(self, requests) -> None:
+        for name, value in requests:
+            ok, reason = self.loop.core.request(Request(Command[name.upper()], altitude=value))
+            assert ok, (name, reason)
+
+    def step(self, executor: MissionExecutor, dt: float, vehicle: Vehicle | None = None):
+        """One guidance step of `executor` (on a possibly stale `vehicle`); its output is applied."""
+        result = executor.step(self.loop.t, dt, vehicle or self.vehicle())
+        self.send(result.requests)
+        if result.setpoint is not None:
+            position, velocity, yaw = result.setpoint
+            self.loop.core.inputs.setpoint = Setpoint(self.loop.t, Level.POSITION, position, velocity, yaw=yaw)
+        return result
+
+
 def fly(plan, timeout=240.0):
-    config = yaml.safe_load((default_airframe_path("quad_x").parent.parent / "core.yaml").read_text())["executive"]
-    loop = ClosedLoop(load_airframe(default_airframe_path("quad_x")), config, seed=3)
+    sitl = Sitl()
+    loop = sitl.loop
     executor = MissionExecutor()
     executor.load(plan, HOME)
     assert executor.start() == ""
@@ -40,19 +67,10 @@ def fly(plan, timeout=240.0):
     reached = {}
     dt = 0.02
     while loop.t < timeout and executor.status == MissionStatus.ACTIVE:
-        s, out = loop.plant.state, loop.core.out
-        vehicle = Vehicle(s.position, out.armed, out.landed not in (Landed.ON_GROUND,), int(out.nav),
-                          quat.yaw_of(s.orientation))
-        result = executor.step(loop.t, dt, vehicle)
-        for name, value in result.requests:
-            ok, reason = loop.core.request(Request(REQUESTS[name], altitude=value))
-            assert ok, (name, reason)
-        if result.setpoint is not None:
-            position, velocity, yaw = result.setpoint
-            loop.core.inputs.setpoint = Setpoint(loop.t, Level.POSITION, position, velocity, yaw=yaw)
-        for k in result.reached:
-            reached[k] = s.position
-        captures += trigger.update(plan, executor.current, executor.last_reached, s.position, HOME)
+        position = loop.plant.state.position
+        for k in sitl.step(executor, dt).reached:
+            reached[k] = position
+        captures += trigger.update(plan, executor.current, executor.last_reached, position, HOME)
         loop.run(dt)
     fly.captures = captures
     return loop, executor, reached
@@ -104,42 +122,65 @@ def test_rtl_commanded_right_after_a_plan_ends_in_the_air_is_flown_despite_a_sta
     flight). The RTL's first leg must still ask for GOTO, after the hold, or the core holds forever."""
     from c4d_mission.plan import Item, Plan
 
-    config = yaml.safe_load((default_airframe_path("quad_x").parent.parent / "core.yaml").read_text())["executive"]
-    loop = ClosedLoop(load_airframe(default_airframe_path("quad_x")), config, seed=3)
+    sitl, dt = Sitl(), 0.02
+    loop = sitl.loop
     executor, rtl = MissionExecutor(), MissionExecutor()
     executor.load(Plan((Item("takeoff", z=5.0), Item("waypoint", x=4.0, y=3.0, z=5.0))), HOME)
     assert executor.start() == ""
-
-    def vehicle() -> Vehicle:
-        s, out = loop.plant.state, loop.core.out
-        return Vehicle(s.position, out.armed, out.landed not in (Landed.ON_GROUND,), int(out.nav), quat.yaw_of(s.orientation))
-
-    def send(requests) -> None:
-        for name, value in requests:
-            ok, reason = loop.core.request(Request(Command[name.upper()], altitude=value))
-            assert ok, (name, reason)
-
-    dt = 0.02
-    while executor.status == MissionStatus.ACTIVE and loop.t < 60.0:
-        result = executor.step(loop.t, dt, stale := vehicle())
-        send(result.requests)
-        if result.setpoint is not None:
-            loop.core.inputs.setpoint = Setpoint(loop.t, Level.POSITION, *result.setpoint[:2], yaw=result.setpoint[2])
-        if executor.status == MissionStatus.ACTIVE:
-            loop.run(dt)
+    while loop.t < 60.0:
+        result = sitl.step(executor, dt, stale := sitl.vehicle())
+        if executor.status != MissionStatus.ACTIVE:
+            break
+        loop.run(dt)
     assert executor.status == MissionStatus.COMPLETED and result.requests == [("hold", 0.0)]
     assert stale.core_nav == 4  # the snapshot the RTL starts from still says GOTO
 
     rtl.load(Plan((Item("rtl"),), rtl_altitude=8.0), HOME)
     rtl.start()
-    first = rtl.step(loop.t, dt, stale)
-    assert first.requests == [("goto", 0.0)]  # queued after the hold: the core ends up following the RTL
-    send(first.requests)
+    assert sitl.step(rtl, dt, stale).requests == [("goto", 0.0)]  # queued after the hold: the core follows the RTL
     while rtl.status == MissionStatus.ACTIVE and loop.t < 120.0:
-        loop.core.inputs.setpoint = None if first.setpoint is None else Setpoint(
-            loop.t, Level.POSITION, *first.setpoint[:2], yaw=first.setpoint[2])
         loop.run(dt)
-        first = rtl.step(loop.t, dt, vehicle())
-        send(first.requests)
+        sitl.step(rtl, dt)
     assert rtl.status == MissionStatus.COMPLETED, (rtl.status, loop.plant.state.position)
     assert not loop.core.out.armed and math.hypot(*loop.plant.state.position[:2]) < 1.0
+
+
+def test_pause_mid_leg_holds_and_resume_continues_from_where_the_vehicle_is():
+    """Pause (the mission node then sends HOLD) in the middle of a leg, move the vehicle with a go-to,
+    resume: the mission flies a fresh leg from the vehicle's position — no jump back to the
+    interrupted leg's setpoint — asks the core for GOTO again, and completes."""
+    from c4d_mission.plan import Item, Plan
+
+    sitl, dt = Sitl(), 0.02
+    loop = sitl.loop
+    executor, goto = MissionExecutor(), MissionExecutor()
+    executor.load(Plan((Item("takeoff", z=5.0), Item("waypoint", x=20.0, y=0.0, z=5.0), Item("land"))), HOME)
+    executor.start()
+    while loop.plant.state.position[0] < 8.0 and loop.t < 60.0:
+        sitl.step(executor, dt)
+        loop.run(dt)
+    assert executor.current == 1 and executor.pause() == ""
+    sitl.send([("hold", 0.0)])
+    paused_at = loop.plant.state.position
+    for _ in range(int(3.0 / dt)):
+        assert sitl.step(executor, dt).setpoint is None  # paused: no guidance
+        loop.run(dt)
+    assert math.dist(loop.plant.state.position, paused_at) < 1.5  # braked and held near the pause point
+
+    goto.load(Plan((Item("waypoint", x=8.0, y=-6.0, z=7.0),)), HOME)  # a go-to moves the vehicle away
+    goto.start()
+    while goto.status == MissionStatus.ACTIVE and loop.t < 90.0:
+        sitl.step(goto, dt)
+        loop.run(dt)
+    assert goto.status == MissionStatus.COMPLETED
+
+    assert executor.resume() == ""
+    here = loop.plant.state.position
+    first = sitl.step(executor, dt)
+    assert first.requests == [("goto", 0.0)]  # the core held after the go-to: following again needs GOTO
+    assert math.dist(first.setpoint[0], here) < 0.5, (first.setpoint[0], here)  # the leg starts where the vehicle is
+    while executor.status == MissionStatus.ACTIVE and loop.t < 180.0:
+        loop.run(dt)
+        sitl.step(executor, dt)
+    assert executor.status == MissionStatus.COMPLETED and executor.last_reached == 2
+    assert not loop.core.out.armed and math.dist(loop.plant.state.position[:2], (20.0, 0.0)) < 1.0
