@@ -76,6 +76,14 @@ class Gcs:
                 self.events.append(msg)
         return None
 
+    def during(self, types, seconds: float) -> list:
+        """Every message of `types` received in the next `seconds` (events kept as in recv)."""
+        got, end = [], time.monotonic() + seconds
+        while (left := end - time.monotonic()) > 0:
+            if (msg := self.recv(types, left)) is not None:
+                got.append(msg)
+        return got
+
     def command(self, command: int, *params: float, timeout: float = 10.0):
         p = list(params) + [0.0] * (7 - len(params))
         self.conn.mav.command_long_send(1, 1, command, 0, *p)
@@ -241,10 +249,30 @@ def test_scripted_gcs_session(graph):
     assert gcs.recv("HEARTBEAT", 10.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.MISSION") is not None, \
         gcs.story()
     reached = set()
-    while 3 not in reached:
-        msg = gcs.recv("MISSION_ITEM_REACHED", 60.0)
-        assert msg is not None, f"reached only {sorted(reached)}"
-        reached.add(msg.seq)
+
+    def fly_until(seq: int) -> None:
+        while seq not in reached:
+            msg = gcs.recv("MISSION_ITEM_REACHED", 60.0)
+            assert msg is not None, f"reached only {sorted(reached)}\n{gcs.story()}"
+            reached.add(msg.seq)
+
+    # --- pause (AUTO.LOITER, as QGC's "Pause") mid-mission, then continue (AUTO.MISSION)
+    fly_until(1)
+    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 3).result == M.MAV_RESULT_ACCEPTED, \
+        gcs.story()
+    assert gcs.recv("HEARTBEAT", 5.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.LOITER") is not None, \
+        gcs.story()
+    gcs.during("LOCAL_POSITION_NED", 1.5)  # braking
+    held = gcs.during("LOCAL_POSITION_NED", 1.0)
+    drift = math.hypot(held[-1].x - held[0].x, held[-1].y - held[0].y)
+    assert drift < 0.5, (drift, gcs.story())  # holding, not flying on
+    assert not any(m.get_type() == "MISSION_ITEM_REACHED" and m.seq == 2 for m in gcs.events), gcs.story()
+    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 4).result == M.MAV_RESULT_ACCEPTED, \
+        gcs.story()
+    assert gcs.recv("HEARTBEAT", 10.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.MISSION") is not None, \
+        gcs.story()
+    report.append(f"paused after item 1 (drift {drift:.2f} m in 1 s), resumed")
+    fly_until(3)  # continued where it stopped, to the end
     position = gcs.recv("GLOBAL_POSITION_INT", 5.0)
     east, north, _ = home.to_enu(position.lat / 1e7, position.lon / 1e7, home.altitude)
     assert math.hypot(east - 0.0, north - 6.0) < 1.5 and position.relative_alt == pytest.approx(5000, abs=600), \

@@ -153,10 +153,18 @@ class MissionExecutor:
         self._now = now
         if self.status != MissionStatus.ACTIVE or self.plan is None or self.home is None or now < self._retry_at:
             return out
-        if self.current >= len(self.plan.items):
+        out = self._step_item(now, dt, v, out)
+        if self.status == MissionStatus.ACTIVE and self.current >= len(self.plan.items):
+            # completed in the step that passed the last item, so the end-of-plan HOLD is sent before
+            # anyone can see the plan finished: a command reacting to that (RTL, a mode) reaches the
+            # core after it, never before (CI: a GCS's mode change overridden by a late HOLD)
             self.status = MissionStatus.COMPLETED
             if v.armed and v.in_air:  # a plan ending in the air: hold here, not at the go-to's start
                 out.requests.append(("hold", 0.0))
+        return out
+
+    def _step_item(self, now: float, dt: float, v: Vehicle, out: Output) -> Output:
+        if self.current >= len(self.plan.items):
             return out
         item = self.plan.items[self.current]
         kind = item.type

@@ -5,7 +5,8 @@ mission/download, mission/control (start, pause, resume, clear, set current), ve
 (arm / take-off with pre-arm checks: estimator valid with home set, every sensor healthy,
 battery above the reserve, inside the geofence; RTL and go-to (loiter at a global target,
 checked against the geofence unless `force`) are flown by the mission node; disarm, land,
-hold and set mode are forwarded to the core's gnc/command). Publishes guidance/setpoint (50 Hz while a mission or RTL
+hold and set mode are forwarded to the core's gnc/command; hold and an accepted set mode pause
+the mission, resumed by mission/control resume). Publishes guidance/setpoint (50 Hz while a mission or RTL
 flies), mission/state (on change and at 2 Hz) and mission/plan (latched). Mode changes reach
 the core only through its latched gnc/command interface.
 Parameters: plan_file (loaded and validated once home is known), min_battery (0.2),
@@ -210,6 +211,11 @@ def main(argv: list[str] | None = None) -> int:
             return response
         forwarded = await core.call_async(request)
         response.result, response.message = forwarded.result, forwarded.message
+        if c == VehicleCommand.Request.CMD_SET_MODE and forwarded.result == RESULT_ACCEPTED:
+            # a mode set by hand (pilot, GCS) takes the vehicle from the plan: the mission pauses (set
+            # mission mode again to resume where it stopped) and an RTL or go-to is cancelled
+            executor.pause()
+            rtl.clear()
         return response
 
     def on_state(msg) -> None:

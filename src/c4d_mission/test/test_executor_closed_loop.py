@@ -132,7 +132,8 @@ def test_rtl_commanded_right_after_a_plan_ends_in_the_air_is_flown_despite_a_sta
         if executor.status != MissionStatus.ACTIVE:
             break
         loop.run(dt)
-    assert executor.status == MissionStatus.COMPLETED and result.requests == [("hold", 0.0)]
+    # the step that passes the last item completes the plan and asks for the HOLD at once
+    assert executor.status == MissionStatus.COMPLETED and result.reached == [1] and result.requests == [("hold", 0.0)]
     assert stale.core_nav == 4  # the snapshot the RTL starts from still says GOTO
 
     rtl.load(Plan((Item("rtl"),), rtl_altitude=8.0), HOME)
