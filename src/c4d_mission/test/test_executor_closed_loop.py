@@ -17,7 +17,6 @@ from c4d_sim.closed_loop import ClosedLoop
 
 ROOT = Path(__file__).resolve().parents[3]
 HOME = GeoOrigin(43.5629, 1.4815, 146.0)
-REQUESTS = {"takeoff": Command.TAKEOFF, "goto": Command.GOTO, "land": Command.LAND}
 
 
 def point_along(path, s):
