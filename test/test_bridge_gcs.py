@@ -110,6 +110,13 @@ class Gcs:
 
         return mode_name(hb.custom_mode)
 
+    def set_mode(self, main: int, sub: int, name: str, within: float) -> None:
+        """DO_SET_MODE (PX4 custom main/sub mode): acked ACCEPTED, then our HEARTBEAT shows `name`."""
+        ack = self.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub)
+        assert ack.result == M.MAV_RESULT_ACCEPTED, self.story()
+        assert self.recv("HEARTBEAT", within, lambda m: m.get_srcSystem() == 1 and self.mode_of(m) == name) is not None, \
+            self.story()
+
 
 @pytest.fixture(scope="module")
 def graph(module_processes, tmp_path_factory):
@@ -258,19 +265,13 @@ def test_scripted_gcs_session(graph):
 
     # --- pause (AUTO.LOITER, as QGC's "Pause") mid-mission, then continue (AUTO.MISSION)
     fly_until(1)
-    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 3).result == M.MAV_RESULT_ACCEPTED, \
-        gcs.story()
-    assert gcs.recv("HEARTBEAT", 5.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.LOITER") is not None, \
-        gcs.story()
+    gcs.set_mode(4, 3, "AUTO.LOITER", within=5.0)
     gcs.during("LOCAL_POSITION_NED", 1.5)  # braking
     held = gcs.during("LOCAL_POSITION_NED", 1.0)
     drift = math.hypot(held[-1].x - held[0].x, held[-1].y - held[0].y)
     assert drift < 0.5, (drift, gcs.story())  # holding, not flying on
     assert not any(m.get_type() == "MISSION_ITEM_REACHED" and m.seq == 2 for m in gcs.events), gcs.story()
-    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 4).result == M.MAV_RESULT_ACCEPTED, \
-        gcs.story()
-    assert gcs.recv("HEARTBEAT", 10.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.MISSION") is not None, \
-        gcs.story()
+    gcs.set_mode(4, 4, "AUTO.MISSION", within=10.0)
     report.append(f"paused after item 1 (drift {drift:.2f} m in 1 s), resumed")
     fly_until(3)  # continued where it stopped, to the end
     position = gcs.recv("GLOBAL_POSITION_INT", 5.0)
@@ -279,10 +280,7 @@ def test_scripted_gcs_session(graph):
         (east, north, position.relative_alt, gcs.story())
 
     # --- pilot override: STABILIZED, MANUAL_CONTROL roll stick 30 % → ~9° roll, then back to hold
-    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 7, 0).result == M.MAV_RESULT_ACCEPTED, \
-        gcs.story()
-    assert gcs.recv("HEARTBEAT", 5.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "STABILIZED") is not None, \
-        gcs.story()
+    gcs.set_mode(7, 0, "STABILIZED", within=5.0)
     rolls = []
     t0 = time.monotonic()
     while time.monotonic() - t0 < 1.5:
@@ -295,10 +293,7 @@ def test_scripted_gcs_session(graph):
     for _ in range(10):
         gcs.conn.mav.manual_control_send(1, 0, 0, 500, 0, 0)
         time.sleep(0.05)
-    assert gcs.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 3).result == M.MAV_RESULT_ACCEPTED, \
-        gcs.story()
-    assert gcs.recv("HEARTBEAT", 5.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.LOITER") is not None, \
-        gcs.story()
+    gcs.set_mode(4, 3, "AUTO.LOITER", within=5.0)
 
     # --- ground link lost: health sees no GCS heartbeat for 3 s, policy RTL after 5 s more
     gcs.beating = False
