@@ -12,7 +12,7 @@ import time
 
 import yaml
 
-from c4d_gnc.airframe import default_airframe_path, load_airframe
+from c4d_common.airframe import default_airframe_path, load_airframe
 from c4d_gnc.gnc import GncCore, Landed, Mode, Nav, StateSample
 
 CORE_YAML = default_airframe_path("quad_x").parent.parent / "core.yaml"

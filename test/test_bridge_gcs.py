@@ -17,7 +17,7 @@ import pytest
 import yaml
 from c4d_testing import installed_executable
 
-from c4d_gnc.geodesy import GeoOrigin
+from c4d_common.geodesy import GeoOrigin
 
 M = None  # the pymavlink dialect, imported in the fixture (MAVLink 2)
 

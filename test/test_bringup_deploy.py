@@ -13,9 +13,9 @@ import pytest
 import yaml
 
 from c4d_bringup.system_config import load_system_config
-from c4d_gnc.geodesy import GeoOrigin
-from c4d_mission.plan import load_plan
-from c4d_mission.validation import validate
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.plan_files import load_plan
+from c4d_common.plan_validation import validate
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCKER = ROOT / "docker"

@@ -119,7 +119,7 @@ def test_bad_config_one_line_exit_2(tmp_path, ros_env):
 def test_missing_airframe_field_exit_2(tmp_path, ros_env):
     import yaml
 
-    from c4d_gnc.airframe import default_airframe_path
+    from c4d_common.airframe import default_airframe_path
 
     doc = yaml.safe_load(default_airframe_path("quad_x").read_text())
     del doc["inertia_kg_m2"]

@@ -42,10 +42,10 @@ def flights(ros_node, ros_env, tmp_path_factory):
     from diagnostic_msgs.msg import DiagnosticStatus
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+    from c4d_common.plan import plan_from_yaml_text
     from c4d_interfaces.msg import MissionState, VehicleState, VehicleStatus
     from c4d_interfaces.srv import MissionControl, UploadMission, VehicleCommand
-    from c4d_mission.plan import plan_from_yaml_text
-    from c4d_mission.ros_plan import plan_to_msg
+    from c4d_ros.plan_msgs import plan_to_msg
 
     node, executor = ros_node
     out, captures = tmp_path_factory.mktemp("flights"), tmp_path_factory.mktemp("captures")

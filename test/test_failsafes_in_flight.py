@@ -123,9 +123,9 @@ class Flight:
 
 
 def test_failsafes_in_flight(graph):
+    from c4d_common.plan import plan_from_yaml_text
     from c4d_interfaces.srv import UploadMission, VehicleCommand
-    from c4d_mission.plan import plan_from_yaml_text
-    from c4d_mission.ros_plan import plan_to_msg
+    from c4d_ros.plan_msgs import plan_to_msg
 
     node, executor, procs, group = graph
     f = Flight(node, executor, procs, group)
@@ -189,7 +189,7 @@ def test_failsafes_in_flight(graph):
 
 def node_target(f: Flight, east: float):
     """A GeoPoint `east` metres east of home at 5 m (the sim's home = the estimator's origin)."""
-    from c4d_gnc.geodesy import GeoOrigin
+    from c4d_common.geodesy import GeoOrigin
     from c4d_interfaces.msg import GeoPoint
 
     lat, lon, _ = GeoOrigin(43.5629, 1.4815, 146.0).to_geodetic(east, 0.0, 0.0)

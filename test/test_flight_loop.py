@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from c4d_testing import installed_executable, spin_for
 
-from c4d_gnc.geodesy import GeoOrigin
+from c4d_common.geodesy import GeoOrigin
 
 SIM_HOME = GeoOrigin(43.5629, 1.4815, 146.0)  # start of config/sim.yaml
 NODES = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "navigation", []),
@@ -31,7 +31,7 @@ def test_takeoff_hover_land(graph):
     from nav_msgs.msg import Odometry
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-    from c4d_gnc import quat
+    from c4d_common import quat
     from c4d_interfaces.msg import ExecutorStats, VehicleState, VehicleStatus
     from c4d_interfaces.srv import VehicleCommand
 

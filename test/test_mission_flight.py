@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from c4d_testing import call_service, installed_executable, sample_latest, spin_for
 
-from c4d_gnc.geodesy import GeoOrigin
+from c4d_common.geodesy import GeoOrigin
 
 ROOT = Path(__file__).resolve().parent.parent
 SIM_HOME = GeoOrigin(43.5629, 1.4815, 146.0)
@@ -34,11 +34,12 @@ def test_survey_mission(graph):
     from nav_msgs.msg import Odometry
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+    from c4d_common.plan import plan_from_yaml_text
+    from c4d_common.plan_files import load_plan
+    from c4d_common.plan_validation import local_point
     from c4d_interfaces.msg import CaptureEvent, MissionState, VehicleState, VehicleStatus
     from c4d_interfaces.srv import DownloadMission, MissionControl, UploadMission, VehicleCommand
-    from c4d_mission.plan import load_plan, plan_from_yaml_text
-    from c4d_mission.ros_plan import plan_to_msg
-    from c4d_mission.validation import local_point
+    from c4d_ros.plan_msgs import plan_to_msg
 
     node, executor, procs, group = graph
     captures_dir = procs.pop("captures_dir")

@@ -277,7 +277,7 @@ def sample_latest(node, msg_type, topic: str):
     import rclpy
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-    from c4d_gnc.ros_drain import LatestSampler
+    from c4d_ros.drain import LatestSampler
 
     side = rclpy.create_node(f"_c4d_test_samples_{len(_samplers)}", context=node.context)
     sampler = LatestSampler(side, msg_type, topic, QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))

@@ -25,6 +25,8 @@ from pathlib import Path
 
 import yaml
 
+from c4d_common.share import share_file
+
 from . import encoders as enc
 from .bridge_ros import RosSide
 from .commands import Context, translate
@@ -39,12 +41,8 @@ M = mavlink
 
 
 def default_config() -> Path:
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        return Path(get_package_share_directory("c4d_bridge_mavlink")) / "config" / "bridge.yaml"
-    except Exception:
-        return Path(__file__).resolve().parent.parent / "config" / "bridge.yaml"
+    """The installed config/bridge.yaml of c4d_bridge_mavlink (the source tree's copy when not installed)."""
+    return share_file("c4d_bridge_mavlink", "config", "bridge.yaml")
 
 
 def load_streams(path: Path) -> dict[int, int]:
@@ -78,7 +76,7 @@ STREAM_ENCODERS = {
 
 
 def main(argv: list[str] | None = None) -> int:
-    from c4d_gnc import node_runtime
+    from c4d_ros import node_runtime
 
     rclpy = node_runtime.init(argv)
     node = rclpy.create_node("bridge")
@@ -99,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         return node_runtime.fail("bridge", str(exc), node)
     airframe = node.declare_parameter("airframe", "quad_x").value
     try:
-        from c4d_gnc.airframe import AirframeError, default_airframe_path, load_airframe
+        from c4d_common.airframe import AirframeError, default_airframe_path, load_airframe
 
         hover = load_airframe(default_airframe_path(airframe)).hover_command  # centre of the pilot's thrust stick
     except (AirframeError, OSError) as exc:

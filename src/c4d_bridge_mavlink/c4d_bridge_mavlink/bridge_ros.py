@@ -11,11 +11,11 @@ from __future__ import annotations
 import math
 import time
 
-from c4d_gnc import quat
-from c4d_gnc.geodesy import GeoOrigin
-from c4d_gnc.ros_drain import LatestSampler
-from c4d_mission.mavlink_items import item_from_mavlink, item_to_mavlink
-from c4d_mission.plan import Geofence, Plan, PlanError
+from c4d_common import quat
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.mavlink_items import item_from_mavlink, item_to_mavlink
+from c4d_common.plan import Geofence, Plan, PlanError
+from c4d_ros.drain import LatestSampler
 
 from .encoders import Snapshot
 from .mission_protocol import FENCE, MISSION, WireItem
@@ -148,7 +148,7 @@ class RosSide:
 
     def _on_plan(self, msg) -> None:
         """The active plan, as the MISSION (and FENCE) items a download returns."""
-        from c4d_mission.ros_plan import plan_from_msg
+        from c4d_ros.plan_msgs import plan_from_msg
 
         self.plan_msg = msg
         if self.missions is None:
@@ -276,7 +276,7 @@ class RosSide:
         p = self.params
         plan = Plan(plan_items, Geofence(self.fence, p.get("GF_MAX_VER_DIST"), p.get("GF_MAX_HOR_DIST")), "mavlink",
                     p.get("MPC_XY_CRUISE"), p.get("RTL_RETURN_ALT"))
-        from c4d_mission.ros_plan import plan_to_msg
+        from c4d_ros.plan_msgs import plan_to_msg
 
         def verdict(reply) -> None:
             if reply is None:

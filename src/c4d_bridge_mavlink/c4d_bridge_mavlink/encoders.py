@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from c4d_gnc import quat
+from c4d_common import quat
 
 from .frames import NAV_GOTO, NAV_MISSION, attitude_to_ned, compass_heading_deg, enu_to_ned, flu_to_frd, px4_custom_mode
 from .signing import mavlink

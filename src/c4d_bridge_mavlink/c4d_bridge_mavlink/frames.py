@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 
-from c4d_gnc import quat
+from c4d_common import quat
 
 Vec = tuple[float, float, float]
 _S = math.sqrt(0.5)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from c4d_gnc import quat
+from c4d_common import quat
 
 MAX_TILT = math.radians(30.0)  # full roll/pitch stick in ATTITUDE mode
 MAX_RATE = math.radians(180.0)  # full stick in RATE mode (roll, pitch)

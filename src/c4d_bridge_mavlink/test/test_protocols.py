@@ -16,7 +16,7 @@ from c4d_bridge_mavlink.mission_protocol import MISSION, MissionServer, WireItem
 from c4d_bridge_mavlink.params import ParamServer
 from c4d_bridge_mavlink.signing import mavlink as M
 from c4d_bridge_mavlink.transport import Router
-from c4d_gnc import quat
+from c4d_common import quat
 
 GCS = M.MAVLink(None, 255, 190)
 

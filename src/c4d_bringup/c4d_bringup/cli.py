@@ -60,8 +60,9 @@ def fail(message: str) -> int:
 
 def load_mission(path: Path, config: SystemConfig):
     """Parse the plan and validate it against the simulated home (SITL); (plan, estimated duration)."""
-    from c4d_mission.plan import PlanError, load_plan
-    from c4d_mission.validation import validate
+    from c4d_common.plan import PlanError
+    from c4d_common.plan_files import load_plan
+    from c4d_common.plan_validation import validate
 
     try:
         plan = load_plan(path)
@@ -70,7 +71,7 @@ def load_mission(path: Path, config: SystemConfig):
     sim = config.node("sim")
     if sim is None:
         return plan, None
-    from c4d_sim.sim_node import SimConfigError, default_sim_config, load_sim_config
+    from c4d_sim.sim_config import SimConfigError, default_sim_config, load_sim_config
 
     sim_file = sim.parameters.get("config") or ""
     try:

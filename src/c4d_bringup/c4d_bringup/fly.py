@@ -150,7 +150,7 @@ def _analyze(config: SystemConfig, bag: Path, report_dir: Path, say) -> Path | N
 def _fly(link, key_values, config, options, plan, up, summary, interrupted, say, started) -> str:
     from c4d_interfaces.msg import GuidanceSetpoint, MissionState, VehicleState, VehicleStatus
     from c4d_interfaces.srv import MissionControl, UploadMission, VehicleCommand
-    from c4d_mission.ros_plan import plan_to_msg
+    from c4d_ros.plan_msgs import plan_to_msg
 
     def watch() -> None:
         if interrupted:

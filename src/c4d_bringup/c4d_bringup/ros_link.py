@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 class GraphLink:
     def __init__(self, name: str = "c4d_cli") -> None:
-        from c4d_gnc import node_runtime
+        from c4d_ros import node_runtime
 
         self.rclpy = node_runtime.init([])
         from diagnostic_msgs.msg import DiagnosticStatus
@@ -25,9 +25,9 @@ class GraphLink:
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from sensor_msgs.msg import BatteryState
 
-        from c4d_gnc.ros_drain import LatestSampler
         from c4d_interfaces.msg import ExecutorStats, GuidanceSetpoint, MissionState, VehicleState, VehicleStatus
         from c4d_interfaces.srv import MissionControl, UploadMission, VehicleCommand
+        from c4d_ros.drain import LatestSampler
 
         self.node = self.rclpy.create_node(f"{name}_{os.getpid()}")
         self.side = self.rclpy.create_node(f"_{name}_samples_{os.getpid()}")

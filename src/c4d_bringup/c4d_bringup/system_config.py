@@ -37,6 +37,8 @@ from typing import Any
 
 import yaml
 
+from c4d_common.share import share_file
+
 # node name -> (package, executable, critical by default)
 CATALOGUE: dict[str, tuple[str, str, bool]] = {
     "sim": ("c4d_sim", "sim", True),
@@ -97,15 +99,7 @@ class SystemConfig:
 
 def default_config_path() -> Path:
     """The installed config/sitl.yaml of c4d_bringup (the source tree's copy when not installed)."""
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        installed = Path(get_package_share_directory("c4d_bringup")) / "config" / "sitl.yaml"
-        if installed.is_file():
-            return installed
-    except Exception:  # not on the ament index (e.g. a unit test of the source tree)
-        pass
-    return Path(__file__).resolve().parent.parent / "config" / "sitl.yaml"
+    return share_file("c4d_bringup", "config", "sitl.yaml")
 
 
 def load_system_config(path: str | Path) -> SystemConfig:

@@ -37,8 +37,8 @@ def message_class(type_name: str):
 
 
 def main(argv: list[str] | None = None) -> int:
-    from c4d_gnc import node_runtime
-    from c4d_gnc.ros_drain import Drainer
+    from c4d_ros import node_runtime
+    from c4d_ros.drain import Drainer
 
     rclpy = node_runtime.init(argv)
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue

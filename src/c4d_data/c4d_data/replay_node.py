@@ -60,7 +60,7 @@ def publisher_qos(offered: str):
 
 
 def main(argv: list[str] | None = None) -> int:
-    from c4d_gnc import node_runtime
+    from c4d_ros import node_runtime
 
     argv = list(sys.argv[1:] if argv is None else argv)
     ros_args = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []

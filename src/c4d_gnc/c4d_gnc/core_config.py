@@ -11,9 +11,10 @@ from pathlib import Path
 
 import yaml
 
+from c4d_common.airframe import Airframe, AirframeError, default_airframe_path, load_airframe
+from c4d_common.share import share_file
 from c4d_sched.tickschedule import ScheduleConfigError, TickSchedule, schedule_from_config
 
-from .airframe import Airframe, AirframeError, default_airframe_path, load_airframe
 from .gnc import GncCore
 
 KNOWN_TASKS = (*GncCore.TASKS, "status")
@@ -33,7 +34,7 @@ class CoreConfig:
 
 
 def default_config_path() -> Path:
-    return default_airframe_path("quad_x").parent.parent / "core.yaml"
+    return share_file("c4d_gnc", "config", "core.yaml")
 
 
 def load_core_config(path: str | Path | None = None, airframe: str | None = None,

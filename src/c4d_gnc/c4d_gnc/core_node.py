@@ -25,12 +25,12 @@ import signal
 import sys
 import time
 
+from c4d_ros.drain import Drainer
 from c4d_sched.executive import CyclicExecutive, MonotonicClock
 from c4d_sched.profiler import format_table
 
 from .core_config import CoreConfigError, load_core_config
 from .gnc import Command, GncCore, Mode, Request
-from .ros_drain import Drainer
 
 RESULT_ACCEPTED, RESULT_TEMPORARILY_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED = 0, 1, 2, 3
 STATUS_PERIOD_S = 0.2  # 5 Hz: also the heartbeat health watches

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import quat
-from .geodesy import GeoOrigin, altitude_at_pressure
+from c4d_common import quat
+from c4d_common.geodesy import GeoOrigin, altitude_at_pressure
 
 GRAVITY = 9.80665
 Vec = tuple[float, float, float]

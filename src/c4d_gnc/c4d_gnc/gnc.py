@@ -17,61 +17,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from enum import IntEnum
 
-from . import quat
-from .airframe import GRAVITY, Airframe
+from c4d_common import quat
+from c4d_common.airframe import GRAVITY, Airframe
+from c4d_common.vehicle import Command, Landed, Level, Mode, Nav
+
 from .control.mixer import Mixer, MixResult
 from .control.rotation import RotationController
 from .control.translation import TranslationController
 
 NAN = float("nan")
 Vec = tuple[float, float, float]
-
-
-class Mode(IntEnum):
-    UNKNOWN = 0
-    RATE = 1
-    ATTITUDE = 2
-    POSITION = 3
-    AUTO = 4
-    KILL = 5
-
-
-class Nav(IntEnum):
-    NONE = 0
-    TAKEOFF = 1
-    MISSION = 2
-    HOLD = 3
-    GOTO = 4
-    RTL = 5
-    LAND = 6
-
-
-class Landed(IntEnum):
-    UNDEFINED = 0
-    ON_GROUND = 1
-    IN_AIR = 2
-    TAKEOFF = 3
-    LANDING = 4
-
-
-class Level(IntEnum):  # GuidanceSetpoint.LEVEL_*
-    POSITION = 1
-    VELOCITY = 2
-    ACCELERATION = 3
-    ATTITUDE = 4
-    RATE = 5
-
-
-class Command(IntEnum):  # VehicleCommand.CMD_* subset served by the core
-    ARM = 1
-    DISARM = 2
-    TAKEOFF = 3
-    LAND = 4
-    HOLD = 6
-    SET_MODE = 7
-    GOTO = 8  # follow the external guidance setpoint stream (AUTO / GOTO), holding if it goes stale
 
 
 @dataclass

@@ -25,7 +25,7 @@ ZUPT_EVERY = 50  # IMU samples between zero-velocity updates (10 Hz at 500 Hz)
 
 
 def main(argv: list[str] | None = None) -> int:
-    from . import node_runtime
+    from c4d_ros import node_runtime
 
     rclpy = node_runtime.init(argv)
     from nav_msgs.msg import Odometry

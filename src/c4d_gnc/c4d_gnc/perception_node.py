@@ -26,7 +26,7 @@ SENSORS = {  # name: (expected rate Hz, timeout s)
 
 
 def main(argv: list[str] | None = None) -> int:
-    from . import node_runtime
+    from c4d_ros import node_runtime
 
     rclpy = node_runtime.init(argv)
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue

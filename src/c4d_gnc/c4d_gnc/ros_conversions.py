@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import math
 
-from builtin_interfaces.msg import Time
-
 from c4d_interfaces.msg import (
     ActuatorCommand,
     ExecutorStats,
@@ -16,19 +14,11 @@ from c4d_interfaces.msg import (
     VehicleState,
     VehicleStatus,
 )
+from c4d_ros.stamps import s_to_stamp, stamp_to_s
 from c4d_sched.profiler import ExecutorReport
 from c4d_sched.tickschedule import TickSchedule
 
 from .gnc import Level, Outputs, Setpoint, StateSample
-
-
-def stamp_to_s(stamp: Time) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
-
-
-def s_to_stamp(t: float) -> Time:
-    sec = math.floor(t)
-    return Time(sec=int(sec), nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000)
 
 
 def state_from_msg(msg: VehicleState) -> StateSample:

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from c4d_gnc import quat
-from c4d_gnc.airframe import AirframeError, airframe_from_dict, default_airframe_path, load_airframe
+from c4d_common import quat
+from c4d_common.airframe import AirframeError, airframe_from_dict, default_airframe_path, load_airframe
 from c4d_gnc.control.mixer import Mixer
 from c4d_gnc.control.pid import VectorPid
 from c4d_gnc.control.translation import TranslationController

@@ -18,8 +18,9 @@ import math
 import sys
 from pathlib import Path
 
-from c4d_gnc.geodesy import GeoOrigin
-from c4d_gnc.ros_drain import LatestSampler
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.share import share_file
+from c4d_ros.drain import LatestSampler
 
 from .liveness import LivenessMonitor
 from .policy import Action, FailsafeArbiter, FailsafePolicy, PolicyError
@@ -35,16 +36,12 @@ WATCHED = {  # node: topic that proves it alive (>= 5 Hz)
 
 
 def default_policy() -> Path:
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        return Path(get_package_share_directory("c4d_health")) / "config" / "failsafe.yaml"
-    except Exception:
-        return Path(__file__).resolve().parent.parent / "config" / "failsafe.yaml"
+    """The installed config/failsafe.yaml of c4d_health (the source tree's copy when not installed)."""
+    return share_file("c4d_health", "config", "failsafe.yaml")
 
 
 def main(argv: list[str] | None = None) -> int:
-    from c4d_gnc import node_runtime
+    from c4d_ros import node_runtime
 
     rclpy = node_runtime.init(argv)
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -53,10 +50,10 @@ def main(argv: list[str] | None = None) -> int:
     from sensor_msgs.msg import BatteryState
     from std_msgs.msg import Header
 
+    from c4d_common.plan_validation import leg_inside
     from c4d_interfaces.msg import ExecutorStats, MissionPlan, MissionState, VehicleState, VehicleStatus
     from c4d_interfaces.srv import VehicleCommand
-    from c4d_mission.ros_plan import plan_from_msg
-    from c4d_mission.validation import leg_inside
+    from c4d_ros.plan_msgs import plan_from_msg
 
     node = rclpy.create_node("health")
     try:

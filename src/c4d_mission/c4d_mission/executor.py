@@ -13,23 +13,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from enum import IntEnum
 
-from c4d_gnc.geodesy import GeoOrigin
-
-from .plan import Plan
-from .validation import local_point
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.plan import Plan
+from c4d_common.plan_validation import local_point
+from c4d_common.vehicle import MissionStatus
 
 Vec = tuple[float, float, float]
-
-
-class MissionStatus(IntEnum):  # MissionState.STATE_*
-    NO_PLAN = 0
-    READY = 1
-    ACTIVE = 2
-    PAUSED = 3
-    COMPLETED = 4
-    ABORTED = 5
 
 
 @dataclass

@@ -18,19 +18,20 @@ from __future__ import annotations
 import math
 import sys
 
-from c4d_gnc.geodesy import GeoOrigin
-from c4d_gnc.ros_drain import LatestSampler
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.plan import GLOBAL, Geofence, Item, Plan, PlanError
+from c4d_common.plan_files import load_plan
+from c4d_common.plan_validation import VehicleLimits, check_goto, leg_inside, validate
+from c4d_ros.drain import LatestSampler
 
 from .executor import MissionExecutor, MissionStatus, Vehicle
-from .plan import GLOBAL, Geofence, Item, Plan, PlanError, load_plan
-from .validation import VehicleLimits, check_goto, leg_inside, validate
 
 RESULT_ACCEPTED, RESULT_TEMPORARILY_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED, RESULT_FAILED = 0, 1, 2, 3, 4
 CORE = {"takeoff": 3, "goto": 8, "land": 4, "hold": 6}
 
 
 def main(argv: list[str] | None = None) -> int:
-    from c4d_gnc import node_runtime
+    from c4d_ros import node_runtime
 
     rclpy = node_runtime.init(argv)
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -38,12 +39,11 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import BatteryState
 
-    from c4d_gnc import quat
-    from c4d_gnc.ros_conversions import s_to_stamp
+    from c4d_common import quat
     from c4d_interfaces.msg import GuidanceSetpoint, MissionPlan, MissionState, VehicleState, VehicleStatus
     from c4d_interfaces.srv import DownloadMission, MissionControl, UploadMission, VehicleCommand
-
-    from .ros_plan import plan_from_msg, plan_to_msg
+    from c4d_ros.plan_msgs import plan_from_msg, plan_to_msg
+    from c4d_ros.stamps import s_to_stamp
 
     node = rclpy.create_node("mission")
     plan_file = node.declare_parameter("plan_file", "").value

@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from .plan import Plan
+from c4d_common.plan import Plan
 
 Vec = tuple[float, float, float]
 EARLY_M = 0.25  # a distance capture may fire this far before its spot: a vehicle easing into a waypoint
@@ -59,7 +59,7 @@ class CameraTrigger:
         self._seen_capture_items: set[int] = set()
 
     def _path(self, plan: Plan, home) -> None:
-        from .validation import local_point
+        from c4d_common.plan_validation import local_point
 
         self._legs.clear()
         position, arc = (0.0, 0.0, 0.0), 0.0

@@ -16,22 +16,21 @@ import sys
 import time
 from pathlib import Path
 
-from c4d_gnc.geodesy import GeoOrigin
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.plan import PlanError
 
 from .payload import CameraTrigger, CaptureLog, camera_mode
-from .plan import PlanError
 
 
 def main(argv: list[str] | None = None) -> int:
-    from c4d_gnc import node_runtime
+    from c4d_ros import node_runtime
 
     rclpy = node_runtime.init(argv)
     from geometry_msgs.msg import Vector3Stamped
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
     from c4d_interfaces.msg import CaptureEvent, MissionPlan, MissionState, VehicleState, VehicleStatus
-
-    from .ros_plan import plan_from_msg
+    from c4d_ros.plan_msgs import plan_from_msg
 
     node = rclpy.create_node("payload")
     output_dir = Path(node.declare_parameter("output_dir", "c4d_captures").value)

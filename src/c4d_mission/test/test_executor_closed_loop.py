@@ -4,16 +4,17 @@ import math
 from pathlib import Path
 
 import yaml
+from closed_loop import ClosedLoop
 
-from c4d_gnc import quat
-from c4d_gnc.airframe import default_airframe_path, load_airframe
-from c4d_gnc.geodesy import GeoOrigin
+from c4d_common import quat
+from c4d_common.airframe import default_airframe_path, load_airframe
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.plan_files import load_plan
+from c4d_common.plan_validation import local_point, validate
+from c4d_gnc.core_config import default_config_path
 from c4d_gnc.gnc import Command, Landed, Level, Request, Setpoint
 from c4d_mission.executor import MissionExecutor, MissionStatus, Vehicle
 from c4d_mission.payload import CameraTrigger
-from c4d_mission.plan import load_plan
-from c4d_mission.validation import local_point, validate
-from c4d_sim.closed_loop import ClosedLoop
 
 ROOT = Path(__file__).resolve().parents[3]
 HOME = GeoOrigin(43.5629, 1.4815, 146.0)
@@ -34,7 +35,7 @@ class Sitl:
     snapshot executors see, their requests to the core, their setpoints."""
 
     def __init__(self) -> None:
-        config = yaml.safe_load((default_airframe_path("quad_x").parent.parent / "core.yaml").read_text())["executive"]
+        config = yaml.safe_load(default_config_path().read_text())["executive"]
         self.loop = ClosedLoop(load_airframe(default_airframe_path("quad_x")), config, seed=3)
 
     def vehicle(self) -> Vehicle:
@@ -98,7 +99,7 @@ def test_survey_completes_every_waypoint_within_acceptance_and_lands_home():
 
 
 def test_refused_requests_are_retried_then_the_mission_aborts():
-    from c4d_mission.plan import Item, Plan
+    from c4d_common.plan import Item, Plan
 
     executor = MissionExecutor()
     executor.load(Plan((Item("takeoff", z=5.0),)), HOME)
@@ -119,7 +120,7 @@ def test_rtl_commanded_right_after_a_plan_ends_in_the_air_is_flown_despite_a_sta
     """The race CI met with MAVSDK: a plan ending in the air completes and asks the core to hold; an
     RTL commanded at once starts while the vehicle status still reports NAV_GOTO (the hold is in
     flight). The RTL's first leg must still ask for GOTO, after the hold, or the core holds forever."""
-    from c4d_mission.plan import Item, Plan
+    from c4d_common.plan import Item, Plan
 
     sitl, dt = Sitl(), 0.02
     loop = sitl.loop
@@ -149,7 +150,7 @@ def test_pause_mid_leg_holds_and_resume_continues_from_where_the_vehicle_is():
     """Pause (the mission node then sends HOLD) in the middle of a leg, move the vehicle with a go-to,
     resume: the mission flies a fresh leg from the vehicle's position — no jump back to the
     interrupted leg's setpoint — asks the core for GOTO again, and completes."""
-    from c4d_mission.plan import Item, Plan
+    from c4d_common.plan import Item, Plan
 
     sitl, dt = Sitl(), 0.02
     loop = sitl.loop

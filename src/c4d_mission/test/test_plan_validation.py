@@ -5,9 +5,10 @@ from pathlib import Path
 
 import pytest
 
-from c4d_gnc.geodesy import GeoOrigin
-from c4d_mission.plan import PlanError, load_plan, plan_from_qgc_text, plan_from_yaml_text
-from c4d_mission.validation import VehicleLimits, validate
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.plan import PlanError, plan_from_yaml_text
+from c4d_common.plan_files import load_plan, plan_from_qgc_text
+from c4d_common.plan_validation import VehicleLimits, validate
 
 ROOT = Path(__file__).resolve().parents[3]
 HOME = GeoOrigin(43.5629, 1.4815, 146.0)
@@ -79,8 +80,8 @@ def test_qgroundcontrol_plan_import():
 
 
 def test_goto_targets_follow_the_plan_rules():
-    from c4d_mission.plan import GLOBAL, Item
-    from c4d_mission.validation import check_goto
+    from c4d_common.plan import GLOBAL, Item
+    from c4d_common.plan_validation import check_goto
 
     fence = load_plan(ROOT / "missions" / "survey.yaml").geofence
 

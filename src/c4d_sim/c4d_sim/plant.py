@@ -19,8 +19,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from c4d_gnc import quat
-from c4d_gnc.airframe import GRAVITY, Airframe
+from c4d_common import quat
+from c4d_common.airframe import GRAVITY, Airframe
 
 GROUND_LEVELING_TAU_S = 0.05  # [s] how fast the ground levels a vehicle that touched down tilted
 # [m/s²] deceleration of a descent by the compressing landing gear: a 0.7 m/s touchdown stops in

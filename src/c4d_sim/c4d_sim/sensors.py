@@ -16,8 +16,8 @@ import random
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 
-from c4d_gnc import quat
-from c4d_gnc.geodesy import GeoOrigin, pressure_at_altitude
+from c4d_common import quat
+from c4d_common.geodesy import GeoOrigin, pressure_at_altitude
 
 from .plant import PlantState
 

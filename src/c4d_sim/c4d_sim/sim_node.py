@@ -24,83 +24,16 @@ import time
 from collections import deque
 from pathlib import Path
 
-import yaml
-
-from c4d_gnc.airframe import AirframeError, default_airframe_path, load_airframe
-from c4d_gnc.geodesy import GeoOrigin
 from c4d_sched.executive import CyclicExecutive, MonotonicClock
 from c4d_sched.tickschedule import TaskSpec, build_schedule
 
 from .plant import MultirotorPlant
-from .sensors import RANGE_MIN, Faults, SensorConfig, SensorConfigError, SensorSuite
-
-
-class SimConfigError(ValueError):
-    pass
-
-
-def default_sim_config() -> Path:
-    here = Path(__file__).resolve().parent
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        return Path(get_package_share_directory("c4d_sim")) / "config" / "sim.yaml"
-    except Exception:
-        return here.parent / "config" / "sim.yaml"
-
-
-def _number(doc: dict, key: str, where: str, positive: bool = False) -> float:
-    value = doc.get(key)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or (positive and value <= 0):
-        raise SimConfigError(f"sim config: field '{where}{key}' must be a {'positive ' if positive else ''}number, got {value!r}")
-    return float(value)
-
-
-def load_sim_config(path: Path) -> dict:
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise SimConfigError(f"cannot read sim config {path}: {exc.strerror}") from None
-    except yaml.YAMLError:
-        raise SimConfigError(f"sim config {path}: malformed YAML") from None
-    if not isinstance(doc, dict):
-        raise SimConfigError("sim config: must be a mapping")
-    unknown = set(doc) - {"airframe", "start", "physics_rate_hz", "ground_truth_rate_hz", "seed", "wind", "sensors"}
-    if unknown:
-        raise SimConfigError(f"sim config: unknown field(s) {', '.join(sorted(unknown))}")
-    start = doc.get("start") or {}
-    for key in ("latitude", "longitude", "altitude"):
-        _number(start, key, "start.")
-    rate = _number(doc, "physics_rate_hz", "", positive=True) if "physics_rate_hz" in doc else 1000.0
-    if rate < 1000 or 1_000_000 % int(rate) or rate != int(rate):
-        raise SimConfigError("sim config: field 'physics_rate_hz' must be an integer >= 1000 dividing 1000000")
-    wind = doc.get("wind") or {}
-    mean = wind.get("mean_enu_m_s", [0.0, 0.0, 0.0])
-    if not isinstance(mean, list) or len(mean) != 3:
-        raise SimConfigError("sim config: field 'wind.mean_enu_m_s' must be a list of 3 numbers")
-    try:
-        sensors = SensorConfig.from_dict(doc.get("sensors"))
-    except SensorConfigError as exc:
-        raise SimConfigError(str(exc)) from None
-    name = str(doc.get("airframe", "quad_x"))
-    try:
-        frame_path = Path(name) if name.endswith((".yaml", ".yml")) else default_airframe_path(name)
-        airframe = load_airframe(frame_path)
-    except AirframeError as exc:
-        raise SimConfigError(str(exc)) from None
-    return {
-        "airframe": airframe, "sensors": sensors, "rate": int(rate),
-        "origin": GeoOrigin(float(start["latitude"]), float(start["longitude"]), float(start["altitude"])),
-        "yaw": math.radians(float(start.get("yaw_deg", 0.0))),
-        "truth_rate": _number(doc, "ground_truth_rate_hz", "", positive=True) if "ground_truth_rate_hz" in doc else 100.0,
-        "seed": int(doc.get("seed", 1)),
-        "wind_mean": tuple(float(x) for x in mean),
-        "gust": float(wind.get("gust_m_s", 0.0)), "gust_period": float(wind.get("gust_period_s", 6.0)),
-    }
+from .sensors import RANGE_MIN, Faults, SensorSuite
+from .sim_config import SimConfigError, default_sim_config, load_sim_config
 
 
 def main(argv: list[str] | None = None) -> int:
-    from c4d_gnc import node_runtime
+    from c4d_ros import node_runtime
 
     rclpy = node_runtime.init(argv)
     from nav_msgs.msg import Odometry
@@ -173,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
         if len(msg.outputs) == len(af.motors):
             command["outputs"], command["armed"], command["t"] = list(msg.outputs), msg.armed, time.monotonic()
 
-    from c4d_gnc.ros_drain import Drainer
+    from c4d_ros.drain import Drainer
 
     drainer = Drainer(node)
     drainer.subscription(ActuatorCommand, "control/actuators", on_actuators,
@@ -183,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     dt = 1.0 / rate
     t_wall0 = [0.0]  # wall-clock time of simulated t = 0, fixed at the first physics tick
     gps_queue: deque = deque()
-    from c4d_gnc.ros_conversions import s_to_stamp
+    from c4d_ros.stamps import s_to_stamp
 
     def stamp(t: float):
         return s_to_stamp(t_wall0[0] + t)

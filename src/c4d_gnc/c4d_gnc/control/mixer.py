@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..airframe import Airframe
+from c4d_common.airframe import Airframe
 
 
 @dataclass(frozen=True)

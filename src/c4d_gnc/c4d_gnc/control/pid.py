@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 
-from ..airframe import AxisGains
+from c4d_common.airframe import AxisGains
 
 Vec = tuple[float, float, float]
 

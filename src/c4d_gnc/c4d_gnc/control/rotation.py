@@ -8,8 +8,9 @@ into torques through the inertia, with the gyroscopic term ω × Iω compensated
 
 from __future__ import annotations
 
-from .. import quat
-from ..airframe import Airframe
+from c4d_common import quat
+from c4d_common.airframe import Airframe
+
 from .pid import VectorPid
 
 Vec = tuple[float, float, float]

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import math
 
-from .. import quat
-from ..airframe import GRAVITY, Airframe
+from c4d_common import quat
+from c4d_common.airframe import GRAVITY, Airframe
+
 from .pid import VectorPid
 
 Vec = tuple[float, float, float]

@@ -14,13 +14,12 @@ import random
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
-from c4d_gnc import quat
-from c4d_gnc.airframe import Airframe
+from c4d_common import quat
+from c4d_common.airframe import Airframe
 from c4d_gnc.gnc import Command, GncCore, Request, StateSample
 from c4d_sched.executive import CyclicExecutive, FakeClock
 from c4d_sched.tickschedule import schedule_from_config
-
-from .plant import MultirotorPlant
+from c4d_sim.plant import MultirotorPlant
 
 
 @dataclass(frozen=True)

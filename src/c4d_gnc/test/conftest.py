@@ -1,13 +1,14 @@
 import pytest
 import yaml
+from closed_loop import DEFAULT_NOISE, ClosedLoop
 
-from c4d_gnc.airframe import default_airframe_path, load_airframe
-from c4d_sim.closed_loop import DEFAULT_NOISE, ClosedLoop
+from c4d_common.airframe import default_airframe_path, load_airframe
+from c4d_gnc.core_config import default_config_path
 
 
 @pytest.fixture(scope="module")
 def core_config():
-    with open(default_airframe_path("quad_x").parent.parent / "core.yaml") as f:
+    with open(default_config_path()) as f:
         return yaml.safe_load(f)["executive"]
 
 

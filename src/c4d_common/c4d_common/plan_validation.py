@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from c4d_gnc.geodesy import GeoOrigin
+from c4d_common.geodesy import GeoOrigin
 
 from .plan import GLOBAL, Geofence, Item, Plan
 

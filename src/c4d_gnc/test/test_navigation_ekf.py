@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from c4d_gnc import quat
+from c4d_common import quat
+from c4d_common.geodesy import GeoOrigin, pressure_at_altitude
 from c4d_gnc.ekf import NavigationEkf
-from c4d_gnc.geodesy import GeoOrigin, pressure_at_altitude
 from c4d_gnc.gnc import Command, Request
 from c4d_sim.sensors import SensorConfig, SensorSuite
 

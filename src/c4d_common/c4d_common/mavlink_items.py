@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from c4d_gnc.geodesy import GeoOrigin
+from c4d_common.geodesy import GeoOrigin
 
 from .plan import GLOBAL, LOCAL, Item, PlanError
 

@@ -4,10 +4,10 @@ import math
 
 import numpy as np
 import pytest
+from closed_loop import NO_NOISE
 
-from c4d_gnc import quat
+from c4d_common import quat
 from c4d_gnc.gnc import Command, Landed, Level, Mode, Nav, Request, Setpoint
-from c4d_sim.closed_loop import NO_NOISE
 
 
 def hover(loop, altitude=5.0, settle=5.0):
@@ -152,7 +152,7 @@ def test_refuses_to_arm_with_stale_inputs(make_loop):
 def test_tilted_touchdown_is_levelled_at_a_rate_the_gyro_sees():
     """The ground levels a vehicle resting tilted; integrating the reported angular velocity
     (what a gyro-driven estimator does) must land on the same, level attitude."""
-    from c4d_gnc.airframe import default_airframe_path, load_airframe
+    from c4d_common.airframe import default_airframe_path, load_airframe
     from c4d_sim.plant import MultirotorPlant
 
     airframe = load_airframe(default_airframe_path("quad_x"))
@@ -176,7 +176,7 @@ def test_touchdown_is_braked_by_the_gear_and_seen_whole_by_the_imu(steps_per_imu
     integrated from the IMU's specific force (the mean over each sample interval, whatever the
     physics steps per sample) comes back to zero as the truth does — an estimator integrating
     the IMU must not believe the vehicle still descends on the ground."""
-    from c4d_gnc.airframe import default_airframe_path, load_airframe
+    from c4d_common.airframe import default_airframe_path, load_airframe
     from c4d_sim.plant import GRAVITY, MultirotorPlant
 
     airframe = load_airframe(default_airframe_path("quad_x"))

@@ -14,7 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
+from .config_file import ConfigError, read_yaml_mapping
+from .share import share_file
 
 GRAVITY = 9.80665
 
@@ -26,7 +27,7 @@ FRAMES = {
 }
 
 
-class AirframeError(ValueError):
+class AirframeError(ConfigError):
     """Invalid airframe file; the message names the field."""
 
 
@@ -178,27 +179,12 @@ def airframe_from_dict(doc: object) -> Airframe:
 
 
 def load_airframe(path: str | Path) -> Airframe:
-    path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise AirframeError(f"cannot read airframe {path}: {exc.strerror}") from None
-    except yaml.YAMLError:
-        raise AirframeError(f"airframe {path}: malformed YAML") from None
-    return airframe_from_dict(doc)
+    return airframe_from_dict(read_yaml_mapping(path, "airframe", AirframeError))
 
 
 def default_airframe_path(name: str = "quad_x") -> Path:
     """Path of a bundled airframe (installed share/ or the source tree)."""
-    here = Path(__file__).resolve().parent
-    candidates = [here.parent / "config" / "airframes" / f"{name}.yaml"]
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        candidates.insert(0, Path(get_package_share_directory("c4d_gnc")) / "config" / "airframes" / f"{name}.yaml")
-    except Exception:
-        pass
-    for candidate in candidates:
-        if candidate.is_file():
-            return candidate
-    raise AirframeError(f"no bundled airframe named '{name}'")
+    candidate = share_file("c4d_common", "config", "airframes", f"{name}.yaml")
+    if not candidate.is_file():
+        raise AirframeError(f"no bundled airframe named '{name}'")
+    return candidate

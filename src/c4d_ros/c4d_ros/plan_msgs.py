@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import math
 
+from c4d_common.plan import GLOBAL, ITEM_TYPES, LOCAL, Geofence, Item, Plan, PlanError
 from c4d_interfaces.msg import GeoPoint, MissionItem, MissionPlan
-
-from .plan import GLOBAL, ITEM_TYPES, LOCAL, Geofence, Item, Plan, PlanError
 
 CMD = {"takeoff": MissionItem.CMD_TAKEOFF, "waypoint": MissionItem.CMD_WAYPOINT, "loiter": MissionItem.CMD_LOITER,
        "change_speed": MissionItem.CMD_CHANGE_SPEED, "land": MissionItem.CMD_LAND, "rtl": MissionItem.CMD_RETURN_TO_LAUNCH,

@@ -1,0 +1,102 @@
+"""Vehicle enums shared by every block: modes, navigation states, landed states, setpoint
+levels and the core's command numbers.
+
+Their values are the constants of c4d_interfaces (VehicleStatus.MODE_*, NAV_*, LANDED_*,
+GuidanceSetpoint.LEVEL_*, VehicleCommand.Request.CMD_*); `c4d_ros/test/test_contracts.py`
+asserts they stay equal, so ROS-free code can use them without importing ROS.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+
+class Mode(IntEnum):
+    UNKNOWN = 0
+    RATE = 1
+    ATTITUDE = 2
+    POSITION = 3
+    AUTO = 4
+    KILL = 5
+
+
+class Nav(IntEnum):
+    NONE = 0
+    TAKEOFF = 1
+    MISSION = 2
+    HOLD = 3
+    GOTO = 4
+    RTL = 5
+    LAND = 6
+
+
+class Landed(IntEnum):
+    UNDEFINED = 0
+    ON_GROUND = 1
+    IN_AIR = 2
+    TAKEOFF = 3
+    LANDING = 4
+
+
+class Level(IntEnum):  # GuidanceSetpoint.LEVEL_*
+    POSITION = 1
+    VELOCITY = 2
+    ACCELERATION = 3
+    ATTITUDE = 4
+    RATE = 5
+
+
+class Command(IntEnum):  # VehicleCommand.CMD_* subset served by the core
+    ARM = 1
+    DISARM = 2
+    TAKEOFF = 3
+    LAND = 4
+    HOLD = 6
+    SET_MODE = 7
+    GOTO = 8  # follow the external guidance setpoint stream (AUTO / GOTO), holding if it goes stale
+
+
+class FailsafeAction(IntEnum):  # VehicleStatus.FAILSAFE_*; order = severity
+    NONE = 0
+    WARN = 1
+    HOLD = 2
+    RTL = 3
+    LAND = 4
+    TERMINATE = 5
+
+
+class VehicleCommandId(IntEnum):  # VehicleCommand.Request.CMD_* (the full set the mission node serves)
+    ARM = 1
+    DISARM = 2
+    TAKEOFF = 3
+    LAND = 4
+    RETURN_TO_LAUNCH = 5
+    HOLD = 6
+    SET_MODE = 7
+    GOTO = 8
+
+
+class CommandResult(IntEnum):  # VehicleCommand / MissionControl RESULT_* (= MAVLink MAV_RESULT)
+    ACCEPTED = 0
+    TEMPORARILY_REJECTED = 1
+    DENIED = 2
+    UNSUPPORTED = 3
+    FAILED = 4
+    IN_PROGRESS = 5
+
+
+class MissionStatus(IntEnum):  # MissionState.STATE_*
+    NO_PLAN = 0
+    READY = 1
+    ACTIVE = 2
+    PAUSED = 3
+    COMPLETED = 4
+    ABORTED = 5
+
+
+class MissionAction(IntEnum):  # MissionControl.Request.ACTION_*
+    START = 1
+    PAUSE = 2
+    RESUME = 3
+    CLEAR = 4
+    SET_CURRENT = 5
