@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from c4d_common.geodesy import GeoOrigin
-
+from .geodesy import GeoOrigin
+from .geofence import leg_inside
 from .plan import GLOBAL, Geofence, Item, Plan
 
 MAX_ITEMS = 500
@@ -48,32 +48,6 @@ def local_point(item, home: GeoOrigin) -> tuple[float, float, float]:
         e, n, _ = home.to_enu(item.x, item.y, home.altitude)
         return e, n, item.z
     return item.x, item.y, item.z
-
-
-def _inside(point: tuple[float, float], polygon: list[tuple[float, float]]) -> bool:
-    x, y = point
-    inside = False
-    for (x1, y1), (x2, y2) in zip(polygon, polygon[1:] + polygon[:1], strict=True):
-        if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
-            inside = not inside
-    return inside
-
-
-def _cross(o, a, b) -> float:
-    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-
-def _segments_intersect(p1, p2, q1, q2) -> bool:
-    d1, d2 = _cross(q1, q2, p1), _cross(q1, q2, p2)
-    d3, d4 = _cross(p1, p2, q1), _cross(p1, p2, q2)
-    return (d1 > 0) != (d2 > 0) and (d3 > 0) != (d4 > 0)
-
-
-def leg_inside(a: tuple[float, float], b: tuple[float, float], polygon: list[tuple[float, float]]) -> bool:
-    if not (_inside(a, polygon) and _inside(b, polygon)):
-        return False
-    edges = zip(polygon, polygon[1:] + polygon[:1], strict=True)
-    return not any(_segments_intersect(a, b, e1, e2) for e1, e2 in edges)
 
 
 def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(),

@@ -1,0 +1,161 @@
+"""The interface manifest: every topic and service of the c4d graph in one place.
+
+This module is the truth for names, types, QoS profiles, nominal rates, producers and
+consumers. Nodes take their topic names and QoS from here (`IMU.name`, `IMU.qos`), the
+tables of docs/ARCHITECTURE.md are generated from it (`python tools/interface_docs.py`), and
+`test/test_interface_manifest.py` starts the whole graph and fails on any difference between
+the live graph and this file.
+
+Names are relative (the graph runs in the root namespace by default). The recorder subscribes
+to every topic (its include/exclude parameters), so it is a consumer of every topic here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from rclpy.qos import QoSProfile
+
+from .qos import Profile
+
+RECORDER = "recorder"
+
+
+@dataclass(frozen=True)
+class Topic:
+    name: str
+    type: str  # ROS type name, e.g. "sensor_msgs/msg/Imu"
+    profile: Profile
+    rate: str  # nominal rate in words ("500 Hz", "on change + 2 Hz")
+    producers: tuple[str, ...]
+    consumers: tuple[str, ...]
+    about: str = ""
+    recorded: bool = True  # the recorder subscribes (default configuration)
+
+    @property
+    def qos(self) -> QoSProfile:
+        return self.profile.qos
+
+    @property
+    def all_consumers(self) -> tuple[str, ...]:
+        return self.consumers + ((RECORDER,) if self.recorded and RECORDER not in self.consumers else ())
+
+
+@dataclass(frozen=True)
+class Service:
+    name: str
+    type: str  # e.g. "c4d_interfaces/srv/VehicleCommand"
+    server: str
+    clients: tuple[str, ...]
+    about: str = ""
+    rate: str = "on demand"
+
+
+@dataclass(frozen=True)
+class Manifest:
+    topics: tuple[Topic, ...]
+    services: tuple[Service, ...]
+    nodes: tuple[str, ...] = field(default=())
+
+    def topic(self, name: str) -> Topic:
+        for t in self.topics:
+            if t.name == name:
+                return t
+        raise KeyError(f"no topic '{name}' in the interface manifest")
+
+
+S, ST, CMD, L, STATS = Profile.SENSOR, Profile.STATE, Profile.COMMAND, Profile.LATCHED, Profile.STATS
+
+# --- sensors (the simulated hardware) ------------------------------------------------------
+IMU = Topic("sensors/imu", "sensor_msgs/msg/Imu", S, "500 Hz", ("sim",), ("perception",))
+GPS = Topic("sensors/gps", "sensor_msgs/msg/NavSatFix", S, "10 Hz, 50 ms latency", ("sim",), ("perception",))
+BARO = Topic("sensors/baro", "sensor_msgs/msg/FluidPressure", S, "50 Hz", ("sim",), ("perception",))
+MAG = Topic("sensors/mag", "sensor_msgs/msg/MagneticField", S, "50 Hz", ("sim",), ("perception",))
+RANGE_DOWN = Topic("sensors/range_down", "sensor_msgs/msg/Range", S, "50 Hz", ("sim",), ("perception",))
+BATTERY = Topic("sensors/battery", "sensor_msgs/msg/BatteryState", S, "10 Hz", ("sim",), ("mission", "health", "bridge"),
+                "also read by the c4d CLI")
+GROUND_TRUTH = Topic("sim/ground_truth", "nav_msgs/msg/Odometry", S, "100 Hz", ("sim",), (),
+                     "true state in `map` (tests, analysis)")
+# --- perception ---------------------------------------------------------------------------
+P_IMU = Topic("perception/imu", "sensor_msgs/msg/Imu", S, "500 Hz", ("perception",), ("navigation", "core"),
+              "validated, calibrated; the core takes the gyro")
+P_GPS = Topic("perception/gps", "sensor_msgs/msg/NavSatFix", S, "10 Hz", ("perception",), ("navigation", "health"))
+P_BARO = Topic("perception/baro", "sensor_msgs/msg/FluidPressure", S, "50 Hz", ("perception",), ("navigation",))
+P_MAG = Topic("perception/mag", "sensor_msgs/msg/MagneticField", S, "50 Hz", ("perception",), ("navigation",))
+P_RANGE_DOWN = Topic("perception/range_down", "sensor_msgs/msg/Range", S, "50 Hz", ("perception",), ("navigation",))
+P_HEALTH = Topic("perception/health", "diagnostic_msgs/msg/DiagnosticArray", STATS, "2 Hz", ("perception",),
+                 ("health", "bridge"), "sensor health")
+# --- navigation ---------------------------------------------------------------------------
+NAV_STATE = Topic("navigation/state", "c4d_interfaces/msg/VehicleState", ST, "500 Hz (per IMU sample)", ("navigation",),
+                  ("core", "mission", "payload", "health", "bridge"), "full estimated state")
+NAV_ODOMETRY = Topic("navigation/odometry", "nav_msgs/msg/Odometry", ST, "50 Hz (parameter)", ("navigation",), (),
+                     "the estimate as standard odometry in `map` (tools, the c4d CLI)")
+# --- GNC core -----------------------------------------------------------------------------
+SETPOINT = Topic("guidance/setpoint", "c4d_interfaces/msg/GuidanceSetpoint", ST,
+                 "50 Hz while flying a plan / RTL / go-to; per MANUAL_CONTROL frame in STABILIZED/ACRO",
+                 ("mission", "bridge"), ("core",), "mission: position level; bridge: pilot attitude / rate level")
+ACTUATORS = Topic("control/actuators", "c4d_interfaces/msg/ActuatorCommand", ST, "every tick (500 Hz)", ("core",), ("sim",),
+                  "the core is the only publisher")
+STATUS = Topic("vehicle/status", "c4d_interfaces/msg/VehicleStatus", L, "on change + 2 Hz (checked at 10 Hz)", ("core",),
+               ("mission", "payload", "health", "bridge"), "armed, mode, landed state, failsafe")
+EXECUTOR_STATS = Topic("gnc/executor_stats", "c4d_interfaces/msg/ExecutorStats", STATS, "1 Hz", ("core",),
+                       ("health", "bridge"), "cyclic-executive profiler")
+SCHEDULE = Topic("gnc/schedule", "c4d_interfaces/msg/ScheduleTable", L, "once", ("core",), (), "static schedule (GCD+)")
+# --- mission and payload ------------------------------------------------------------------
+MISSION_STATE = Topic("mission/state", "c4d_interfaces/msg/MissionState", L, "on change + 2 Hz", ("mission",),
+                      ("payload", "bridge"))
+MISSION_PLAN = Topic("mission/plan", "c4d_interfaces/msg/MissionPlan", L, "on change", ("mission",),
+                     ("payload", "health", "bridge"))
+CAPTURES = Topic("payload/captures", "c4d_interfaces/msg/CaptureEvent", CMD, "per capture", ("payload",), ("bridge",))
+GIMBAL = Topic("payload/gimbal", "geometry_msgs/msg/Vector3Stamped", S, "50 Hz while a mission runs", ("payload",), (),
+               "roll, pitch, yaw [rad], body frame")
+# --- health -------------------------------------------------------------------------------
+DIAGNOSTICS = Topic("diagnostics", "diagnostic_msgs/msg/DiagnosticArray", STATS, "1 Hz", ("health",), ("bridge",))
+HEALTH_SUMMARY = Topic("health/summary", "diagnostic_msgs/msg/DiagnosticStatus", L, "10 Hz", ("health",), ("bridge",),
+                       "failsafe, reason, active events, dead nodes")
+# --- bridge -------------------------------------------------------------------------------
+GCS_HEARTBEAT = Topic("bridge/gcs_heartbeat", "std_msgs/msg/Header", ST, "per GCS HEARTBEAT (~1 Hz per GCS)", ("bridge",),
+                      ("health",), "frame_id 'gcs'; health's `link_topic`")
+LINK_STATS = Topic("bridge/link_stats", "diagnostic_msgs/msg/DiagnosticArray", STATS, "1 Hz", ("bridge",), (),
+                   "link up/losses, per endpoint rx/tx, rejections, utilisation")
+# --- recorder -----------------------------------------------------------------------------
+RECORDER_STATUS = Topic("recorder/status", "diagnostic_msgs/msg/DiagnosticStatus", L, "1 Hz + on change", ("recorder",),
+                        ("bridge",), "state, file, written, dropped")
+
+TOPICS: tuple[Topic, ...] = (
+    IMU, GPS, BARO, MAG, RANGE_DOWN, BATTERY, GROUND_TRUTH,
+    P_IMU, P_GPS, P_BARO, P_MAG, P_RANGE_DOWN, P_HEALTH,
+    NAV_STATE, NAV_ODOMETRY,
+    SETPOINT, ACTUATORS, STATUS, EXECUTOR_STATS, SCHEDULE,
+    MISSION_STATE, MISSION_PLAN, CAPTURES, GIMBAL,
+    DIAGNOSTICS, HEALTH_SUMMARY,
+    GCS_HEARTBEAT, LINK_STATS,
+    RECORDER_STATUS,
+)
+
+# --- services -----------------------------------------------------------------------------
+CORE_COMMAND = Service("gnc/command", "c4d_interfaces/srv/VehicleCommand", "core", ("mission", "health"),
+                       "ARM, DISARM, TAKEOFF, LAND, HOLD, SET_MODE, GOTO; applied at the next tick")
+VEHICLE_COMMAND = Service("vehicle/command", "c4d_interfaces/srv/VehicleCommand", "mission", ("bridge", "health"),
+                          "every vehicle command incl. RTL; also the c4d CLI")
+MISSION_UPLOAD = Service("mission/upload", "c4d_interfaces/srv/UploadMission", "mission", ("bridge",),
+                         "validate and accept a plan; also the c4d CLI")
+MISSION_DOWNLOAD = Service("mission/download", "c4d_interfaces/srv/DownloadMission", "mission", ("bridge",))
+MISSION_CONTROL = Service("mission/control", "c4d_interfaces/srv/MissionControl", "mission", ("bridge", "health"),
+                          "start / pause / resume / clear / set current; also the c4d CLI")
+RECORDER_START = Service("recorder/start", "std_srvs/srv/Trigger", "recorder", (), "c4d CLI, tests")
+RECORDER_STOP = Service("recorder/stop", "std_srvs/srv/Trigger", "recorder", (), "c4d CLI, tests")
+
+SERVICES: tuple[Service, ...] = (
+    CORE_COMMAND, VEHICLE_COMMAND, MISSION_UPLOAD, MISSION_DOWNLOAD, MISSION_CONTROL, RECORDER_START, RECORDER_STOP,
+)
+
+NODES: tuple[str, ...] = ("sim", "perception", "navigation", "core", "mission", "payload", "health", "bridge", "recorder")
+
+MANIFEST = Manifest(TOPICS, SERVICES, NODES)
+
+
+def side_node_name(owner: str) -> str:
+    """Name of the hidden helper node on which `owner` keeps LatestSampler subscriptions; the
+    live-graph check attributes its subscriptions to `owner`."""
+    return f"_{owner}_samples"
