@@ -48,7 +48,9 @@ def declare(node: Any, name: str, spec: Spec) -> Any:
     try:
         return node.declare_parameter(name, spec.default, spec.descriptor()).value
     except InvalidParameterValueException as exc:
-        raise ParameterError(f"parameter '{name}': {_reason(exc, spec)}") from None
+        value = getattr(node, "_parameter_overrides", {}).get(name)  # rclpy keeps the start value only here
+        shown = value.value if value is not None else "?"
+        raise ParameterError(f"parameter '{name}': {_reason(exc, spec, shown)}") from None
     except InvalidParameterTypeException:
         raise ParameterError(f"parameter '{name}': expected {type(spec.default).__name__}") from None
 
@@ -58,8 +60,7 @@ def declare_all(node: Any, specs: dict[str, Spec]) -> dict[str, Any]:
     return {name: declare(node, name, spec) for name, spec in specs.items()}
 
 
-def _reason(exc: InvalidParameterValueException, spec: Spec) -> str:
-    value = exc.args[1] if len(exc.args) > 1 else "?"
+def _reason(exc: InvalidParameterValueException, spec: Spec, value: Any) -> str:
     if spec.low is not None and spec.high is not None:
         return f"{value!r} is outside [{spec.low:g}, {spec.high:g}]"
-    return f"{value!r} refused ({exc.args[2] if len(exc.args) > 2 else exc})"
+    return f"{value!r} refused ({exc})"
