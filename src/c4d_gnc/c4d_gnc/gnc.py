@@ -92,6 +92,16 @@ class Request:
     force: bool = False
 
 
+@dataclass(frozen=True)
+class Verdict:
+    """The core's answer to a request. `retry`: refused only because the estimate is not (yet)
+    fresh or valid — worth asking again (the service answers TEMPORARILY_REJECTED, not DENIED)."""
+
+    accepted: bool
+    reason: str
+    retry: bool = False
+
+
 STATE_TIMEOUT_S = 0.1
 GYRO_TIMEOUT_S = 0.02
 SETPOINT_TIMEOUT_S = 0.5
@@ -140,23 +150,28 @@ class GncCore:
 
     def request(self, req: Request) -> tuple[bool, str]:
         """Validate now, apply at the next tick boundary. Returns (accepted, reason)."""
+        verdict = self.submit(req)
+        return verdict.accepted, verdict.reason
+
+    def submit(self, req: Request) -> Verdict:
+        """Validate now, apply at the next tick boundary; the typed answer of `request()`."""
         armed, landed = self.out.armed, self.out.landed
         if req.command in (Command.ARM, Command.TAKEOFF):
             reason = self.inputs_fresh()
             if reason and not (req.force and req.command == Command.ARM):
-                return False, f"refusing to arm: {reason}"
+                return Verdict(False, f"refusing to arm: {reason}", retry=True)
             if req.command == Command.TAKEOFF and self.inputs.state and not self.inputs.state.valid_position:
-                return False, "take-off needs a valid position estimate"
+                return Verdict(False, "take-off needs a valid position estimate", retry=True)
         if req.command == Command.DISARM and armed and landed not in (Landed.ON_GROUND,) and not req.force:
-            return False, "refusing to disarm in the air (use force)"
+            return Verdict(False, "refusing to disarm in the air (use force)")
         if req.command == Command.SET_MODE and req.mode not in (Mode.RATE, Mode.ATTITUDE, Mode.POSITION, Mode.AUTO, Mode.KILL):
-            return False, f"unknown mode {int(req.mode)}"
+            return Verdict(False, f"unknown mode {int(req.mode)}")
         if req.command in (Command.LAND, Command.HOLD, Command.GOTO) and not armed:
-            return False, "not armed"
+            return Verdict(False, "not armed")
         if req.command == Command.GOTO and landed == Landed.ON_GROUND:
-            return False, "on the ground: take off first"
+            return Verdict(False, "on the ground: take off first")
         self.pending.append(req)
-        return True, "accepted: applies at the next tick"
+        return Verdict(True, "accepted: applies at the next tick")
 
     def latch(self) -> None:
         """Apply pending requests, in arrival order, at this tick boundary."""
