@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# c4d tests — lint (ruff) and every test (pytest over src/*/test and test/).
+# c4d tests — lint (ruff), static types (mypy, strict on the ROS-free packages) and every test
+# (pytest over src/*/test and test/).
 #
 #   ./test.sh               everything
 #   ./test.sh -k interfaces extra arguments go to pytest
@@ -13,6 +14,9 @@ cd "$ROOT"
 
 echo "test: ruff check"
 ruff check --no-cache . || { echo "test: error: lint failed" >&2; exit 1; }
+
+echo "test: mypy (strict on the ROS-free shared packages: c4d_common, c4d_sched)"
+mypy || { echo "test: error: type check failed" >&2; exit 1; }
 
 echo "test: pytest"
 set +e

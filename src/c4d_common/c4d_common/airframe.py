@@ -13,6 +13,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from .config_file import ConfigError, read_yaml_mapping
 from .share import share_file
@@ -82,7 +83,7 @@ class Airframe:
         return self.mass * GRAVITY / self.total_max_thrust
 
 
-def _get(doc: Mapping, path: str):
+def _get(doc: Mapping[str, Any], path: str) -> Any:
     value: object = doc
     for part in path.split("."):
         if not isinstance(value, Mapping) or part not in value:
@@ -91,7 +92,7 @@ def _get(doc: Mapping, path: str):
     return value
 
 
-def _num(doc: Mapping, path: str, positive: bool = True) -> float:
+def _num(doc: Mapping[str, Any], path: str, positive: bool = True) -> float:
     value = _get(doc, path)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise AirframeError(f"airframe: field '{path}' must be a number, got {value!r}")
@@ -100,7 +101,7 @@ def _num(doc: Mapping, path: str, positive: bool = True) -> float:
     return float(value)
 
 
-def _vec3(doc: Mapping, path: str, positive: bool = False) -> tuple[float, float, float]:
+def _vec3(doc: Mapping[str, Any], path: str, positive: bool = False) -> tuple[float, float, float]:
     value = _get(doc, path)
     if not isinstance(value, (list, tuple)) or len(value) != 3:
         raise AirframeError(f"airframe: field '{path}' must be a list of 3 numbers")
@@ -112,12 +113,12 @@ def _vec3(doc: Mapping, path: str, positive: bool = False) -> tuple[float, float
     return out[0], out[1], out[2]
 
 
-def _gains(doc: Mapping, path: str) -> AxisGains:
+def _gains(doc: Mapping[str, Any], path: str) -> AxisGains:
     return AxisGains(_vec3(doc, f"{path}.p"), _vec3(doc, f"{path}.i"), _vec3(doc, f"{path}.d"),
                      _vec3(doc, f"{path}.i_limit"))
 
 
-def _motors(doc: Mapping, km: float) -> tuple[Motor, ...]:
+def _motors(doc: Mapping[str, Any], km: float) -> tuple[Motor, ...]:
     if "motors" in doc:
         layout = []
         for k, m in enumerate(doc["motors"] or []):

@@ -42,9 +42,9 @@ class GeoOrigin:
 
 def pressure_at_altitude(altitude: float) -> float:
     """ISA troposphere static pressure [Pa] at an AMSL altitude [m]."""
-    return 101325.0 * (1.0 - 2.25577e-5 * altitude) ** 5.25588
+    return float(101325.0 * (1.0 - 2.25577e-5 * altitude) ** 5.25588)
 
 
 def altitude_at_pressure(pressure: float) -> float:
     """Inverse of pressure_at_altitude [m]."""
-    return (1.0 - (pressure / 101325.0) ** (1.0 / 5.25588)) / 2.25577e-5
+    return float((1.0 - (pressure / 101325.0) ** (1.0 / 5.25588)) / 2.25577e-5)

@@ -45,7 +45,9 @@ def _goossens(taskset: TaskSet, rng: random.Random, modified: bool) -> tuple[int
             offsets[i] = rng.randrange(T[i])
         known, new = (i, j) if offsets[i] is not None else (j, i)
         shift = (g + C[known] - C[new]) // 2 if modified else g // 2
-        offsets[new] = (offsets[known] + shift) % T[new]
+        anchor = offsets[known]
+        assert anchor is not None  # one of the pair was placed above
+        offsets[new] = (anchor + shift) % T[new]
     return tuple(o if o is not None else rng.randrange(T[k]) for k, o in enumerate(offsets))
 
 

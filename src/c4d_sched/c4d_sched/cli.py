@@ -14,6 +14,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any, NoReturn
 
 from .fifo import EvaluationTooLarge, cycle_loads, evaluate
 from .gcdplus import GcdPlusResult
@@ -27,7 +28,7 @@ class UsageError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line instead of usage + message
+    def error(self, message: str) -> NoReturn:  # one line instead of usage + message
         raise UsageError(message)
 
 
@@ -45,14 +46,14 @@ def _float_list(text: str, what: str) -> list[float]:
         raise UsageError(f"{what} must be comma-separated numbers, got '{text}'") from None
 
 
-def _load_summary(ts: TaskSet, offsets: tuple[int, ...], cycle: int | None) -> dict:
+def _load_summary(ts: TaskSet, offsets: tuple[int, ...], cycle: int | None) -> dict[str, Any]:
     length, loads = cycle_loads(ts.periods, ts.wcets, offsets, cycle)
     return {"cycle": length, "max_cycle_load": int(loads.max()), "cycles": len(loads),
             "overloaded_cycles": int((loads > length).sum())}
 
 
-def _assignment_dict(ts: TaskSet, a: Assignment, cycle: int | None) -> dict:
-    out: dict = {"method": a.method, "note": a.note, "unit": ts.unit, "utilisation": round(ts.utilisation, 6),
+def _assignment_dict(ts: TaskSet, a: Assignment, cycle: int | None) -> dict[str, Any]:
+    out: dict[str, Any] = {"method": a.method, "note": a.note, "unit": ts.unit, "utilisation": round(ts.utilisation, 6),
                  "tasks": [{"name": t.name, "period": t.period, "wcet": t.wcet, "offset": o}
                            for t, o in zip(ts.tasks, a.offsets, strict=True)]}
     detail = a.detail
@@ -71,7 +72,7 @@ def _assignment_dict(ts: TaskSet, a: Assignment, cycle: int | None) -> dict:
     return out
 
 
-def _print_assignment(d: dict) -> None:
+def _print_assignment(d: dict[str, Any]) -> None:
     g = d.get("gcdplus")
     head = f"{'task':<24}{'T':>10}{'C':>8}{'offset':>10}"
     if g:
@@ -92,14 +93,14 @@ def _print_assignment(d: dict) -> None:
           f"{load['overloaded_cycles']} cycle(s) above the cycle length")
 
 
-def _evaluation_dict(ts: TaskSet, offsets: tuple[int, ...], method: str) -> dict:
+def _evaluation_dict(ts: TaskSet, offsets: tuple[int, ...], method: str) -> dict[str, Any]:
     e = evaluate(ts, offsets)
     return {"method": method, "hyperperiod": e.hyperperiod, "horizon": e.horizon, "jobs": e.jobs,
             "schedulable": e.schedulable, "zero_interference": e.zero_interference,
             "tasks": [t.__dict__ for t in e.tasks]}
 
 
-def _print_evaluation(d: dict) -> None:
+def _print_evaluation(d: dict[str, Any]) -> None:
     print(f"method: {d['method']}   H = {d['hyperperiod']}, window [0, {d['horizon']}), {d['jobs']} jobs")
     print(f"{'task':<24}{'T':>10}{'C':>8}{'O':>10}{'η':>9}{'η/T':>8}{'η/maxC':>8}{'(η+C)/C':>9}{'misses':>8}")
     for t in d["tasks"]:
@@ -216,7 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
-        return args.func(args)
+        return int(args.func(args))
     except (UsageError, TaskSetError, EvaluationTooLarge, ValueError) as exc:
         print(f"c4d-sched: error: {exc}", file=sys.stderr)
         return 2

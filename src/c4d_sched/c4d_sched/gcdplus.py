@@ -38,7 +38,7 @@ from typing import NamedTuple
 from .arith import gcd_all, prime_factors
 from .model import Assignment, TaskSet
 
-ORDER_VARIANTS: dict[str, Callable[[int, Sequence[int], Sequence[int]], tuple]] = {
+ORDER_VARIANTS: dict[str, Callable[[int, Sequence[int], Sequence[int]], tuple[float, ...]]] = {
     # name -> sort key of task i given periods T and wcets C (stable on the task index)
     "decreasing_wcet": lambda i, T, C: (-C[i], i),
     "increasing_period_decreasing_wcet": lambda i, T, C: (T[i], -C[i], i),
@@ -222,7 +222,7 @@ def run_order(taskset: TaskSet, order: str) -> GcdPlusResult:
     return builder.result(order)
 
 
-def _score(taskset: TaskSet, result: GcdPlusResult) -> tuple[tuple, str]:
+def _score(taskset: TaskSet, result: GcdPlusResult) -> tuple[tuple[float, ...], str]:
     from .fifo import evaluate  # local: fifo imports numpy, keep GCD+ import-light
 
     evaluation = evaluate(taskset, result.offsets)

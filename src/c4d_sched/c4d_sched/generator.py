@@ -75,10 +75,10 @@ class PeriodModel:
 
 def fit_exponents(periods: Sequence[int]) -> dict[int, dict[int, int]]:
     """Observed exponent counts per prime over `periods`: {p: {exponent: count}}."""
-    counts: dict[int, Counter] = {}
+    counts: dict[int, Counter[int]] = {}
     factorisations = []
     for t in periods:
-        f = Counter()
+        f: Counter[int] = Counter()
         for p in prime_factors(t):
             x = t
             while x % p == 0:

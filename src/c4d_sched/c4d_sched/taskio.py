@@ -28,13 +28,13 @@ import yaml
 from .model import Chain, Task, TaskSet, TaskSetError
 
 
-def _mapping(value: Any, what: str) -> dict:
+def _mapping(value: Any, what: str) -> dict[str, Any]:
     if not isinstance(value, dict):
         raise TaskSetError(f"{what} must be a mapping, got {type(value).__name__}")
     return value
 
 
-def _messages_to_tasks(doc: dict) -> list[Task]:
+def _messages_to_tasks(doc: dict[str, Any]) -> list[Task]:
     link = _mapping(doc.get("link"), "'link'")
     bps = link.get("bits_per_second")
     if not isinstance(bps, int) or bps <= 0:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from .arith import gcd_all
 from .fifo import cycle_loads
@@ -78,7 +79,7 @@ class TickSchedule:
         return [t for t in self.tasks if tick % t.divider == t.phase]
 
 
-def _field(item: Mapping, key: str, where: str, kind: type = int, required: bool = True):
+def _field(item: Mapping[str, Any], key: str, where: str, kind: type = int, required: bool = True) -> Any:
     if key not in item:
         if required:
             raise ScheduleConfigError(f"{where}: missing field '{key}'")
