@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from enum import Enum
 
 from c4d_common.geodesy import GeoOrigin
 
@@ -31,6 +32,22 @@ SUPPORTED_COMMANDS = {NAV_TAKEOFF: "takeoff", NAV_WAYPOINT: "waypoint", NAV_LOIT
                       IMAGE_STOP_CAPTURE: "camera_stop", DO_DIGICAM_CONTROL: "camera_capture"}
 
 
+class ItemProblem(Enum):
+    """What is wrong with a MAVLink mission item (the MAV_MISSION_RESULT a GCS gets depends on it)."""
+
+    FRAME = "frame"  # a frame c4d does not take (or an AMSL frame without a home altitude)
+    COMMAND = "command"  # a command c4d does not fly
+    VALUE = "value"  # a missing or out-of-range parameter
+
+
+class MavlinkItemError(PlanError):
+    """A MAVLink mission item that cannot become a plan item: `problem` says what kind, the text which."""
+
+    def __init__(self, problem: ItemProblem, text: str) -> None:
+        super().__init__(text)
+        self.problem = problem
+
+
 def compass_to_enu_yaw(heading_deg: float) -> float:
     return math.radians(90.0 - heading_deg) if math.isfinite(heading_deg) else NAN
 
@@ -41,22 +58,22 @@ def enu_yaw_to_compass(yaw: float) -> float:
 
 def item_from_mavlink(command: int, frame: int, params: Sequence[float], home_altitude: float | None = None,
                       where: str = "item") -> Item:
-    """One plan item from a MAVLink mission item; PlanError names what is wrong.
+    """One plan item from a MAVLink mission item; MavlinkItemError (a PlanError) names what is wrong.
 
     `params` = param1..4, x/latitude, y/longitude, z/altitude (7 floats, NaN = unset). AMSL
     frames need `home_altitude` to turn the altitude into one above home."""
     kind = SUPPORTED_COMMANDS.get(command)
     if kind is None:
-        raise PlanError(f"{where}: unsupported MAVLink command {command}")
+        raise MavlinkItemError(ItemProblem.COMMAND, f"{where}: unsupported MAVLink command {command}")
     if len(params) != 7:
-        raise PlanError(f"{where}: 7 params needed")
+        raise MavlinkItemError(ItemProblem.VALUE, f"{where}: 7 params needed")
     p = [float(v) for v in params]
     if kind in ("takeoff", "waypoint", "loiter", "land"):
         if frame not in POSITION_FRAMES and not (frame == FRAME_MISSION and kind in ("land", "takeoff")):
-            raise PlanError(f"{where}: frame {frame} not supported (use relative altitude, 3 or 6)")
+            raise MavlinkItemError(ItemProblem.FRAME, f"{where}: frame {frame} not supported (use relative altitude, 3 or 6)")
         if frame in (FRAME_GLOBAL, FRAME_GLOBAL_INT):
             if home_altitude is None:
-                raise PlanError(f"{where}: AMSL frame {frame} needs a home altitude")
+                raise MavlinkItemError(ItemProblem.FRAME, f"{where}: AMSL frame {frame} needs a home altitude")
             p[6] -= home_altitude
     yaw = compass_to_enu_yaw(p[3])
     if kind == "takeoff":
@@ -65,24 +82,24 @@ def item_from_mavlink(command: int, frame: int, params: Sequence[float], home_al
         if kind == "land" and (not math.isfinite(p[4]) or (p[4] == 0.0 and p[5] == 0.0)):
             return Item(kind)  # land here
         if not (math.isfinite(p[4]) and math.isfinite(p[5]) and math.isfinite(p[6])):
-            raise PlanError(f"{where}: {kind} needs a latitude, a longitude and an altitude")
+            raise MavlinkItemError(ItemProblem.VALUE, f"{where}: {kind} needs a latitude, a longitude and an altitude")
         if not (-90.0 <= p[4] <= 90.0 and -180.0 <= p[5] <= 180.0):
-            raise PlanError(f"{where}: latitude/longitude out of range")
+            raise MavlinkItemError(ItemProblem.VALUE, f"{where}: latitude/longitude out of range")
         if command == NAV_LOITER_UNLIM:
             hold = math.inf
         else:
             hold = p[0] if kind in ("waypoint", "loiter") and math.isfinite(p[0]) else 0.0
         if hold < 0:
-            raise PlanError(f"{where}: negative hold time")
+            raise MavlinkItemError(ItemProblem.VALUE, f"{where}: negative hold time")
         radius = p[1] if kind == "waypoint" and math.isfinite(p[1]) and p[1] > 0 else 1.0
         return Item(kind, GLOBAL, p[4], p[5], p[6] if kind != "land" else 0.0, radius, hold, yaw)
     if kind == "change_speed":
         if not (math.isfinite(p[1]) and p[1] > 0):
-            raise PlanError(f"{where}: speed must be > 0")
+            raise MavlinkItemError(ItemProblem.VALUE, f"{where}: speed must be > 0")
         return Item(kind, speed=p[1])
     if kind == "camera_distance":
         if not (math.isfinite(p[0]) and p[0] >= 0):
-            raise PlanError(f"{where}: trigger distance must be >= 0")
+            raise MavlinkItemError(ItemProblem.VALUE, f"{where}: trigger distance must be >= 0")
         return Item(kind, camera_distance=p[0])
     return Item(kind)
 
