@@ -5,33 +5,61 @@ Monitors (10 Hz): node liveliness (each watched node's periodic topic silent lon
 (perception/health), estimator validity (navigation/state), battery state of charge
 (sensors/battery), geofence (mission/plan against the position),
 ground link (a heartbeat topic, when `link_topic` is set), executor overruns
-(gnc/executor_stats). Publishes `diagnostics` (DiagnosticArray, 1 Hz, one status per monitor)
-and `health/summary` (DiagnosticStatus: overall level, active events, failsafe action and
-reason, dead nodes). The failsafe policy (config/failsafe.yaml, parameter `policy_file`)
-turns events into hold / RTL / land / terminate, requested once per escalation through the
-mission's vehicle/command (RTL needs the mission), falling back to the core's gnc/command.
+(gnc/executor_stats); the conditions are judged by events.py. Publishes `diagnostics`
+(DiagnosticArray, 1 Hz, one status per monitor) and `health/summary` (DiagnosticStatus: overall
+level, active events, failsafe action and reason, dead nodes). The failsafe policy
+(config/failsafe.yaml, parameter `policy_file`) turns events into hold / RTL / land /
+terminate, requested once per escalation through the mission's vehicle/command (RTL needs the
+mission), falling back to the core's gnc/command (commands.py).
 """
 
 from __future__ import annotations
 
-import math
 import sys
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import BatteryState
+from std_msgs.msg import Header
 
 from c4d_common.geodesy import GeoOrigin
+from c4d_common.geofence import Point3
+from c4d_common.plan import Geofence
 from c4d_common.share import share_file
+from c4d_common.vehicle import CommandResult, Landed
+from c4d_interfaces.msg import ExecutorStats, MissionPlan, MissionState, VehicleState, VehicleStatus
+from c4d_interfaces.srv import VehicleCommand
+from c4d_ros import manifest
 from c4d_ros.drain import LatestSampler
+from c4d_ros.params import ParameterError, Spec, declare_all
+from c4d_ros.plan_msgs import plan_from_msg
 
+from .commands import FailsafeCommand, failsafe_command
+from .events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, evaluate
 from .liveness import LivenessMonitor
-from .policy import Action, FailsafeArbiter, FailsafePolicy, PolicyError
+from .policy import Action, Event, FailsafeArbiter, FailsafePolicy, PolicyError
 
+NAME = "health"
 TICK_S = 0.1  # monitor period
+DIAGNOSTICS_PERIOD_S = 1.0
 WATCHED = {  # node: topic that proves it alive (>= 5 Hz)
-    "core": "vehicle/status",
-    "navigation": "navigation/odometry",
-    "perception": "perception/health",
-    "mission": "mission/state",
-    "sim": "sensors/battery",
+    "core": manifest.STATUS,
+    "navigation": manifest.NAV_ODOMETRY,
+    "perception": manifest.P_HEALTH,
+    "mission": manifest.MISSION_STATE,
+    "sim": manifest.BATTERY,
+}
+IN_AIR = (Landed.IN_AIR, Landed.TAKEOFF, Landed.LANDING)
+PARAMETERS = {
+    "policy_file": Spec("", "failsafe policy YAML file [path]; empty: the bundled config/failsafe.yaml", read_only=True),
+    "link_topic": Spec("", f"ground-link heartbeat topic (std_msgs/Header) [topic name], lost after {LINK_TIMEOUT_S:g} s "
+                       f"of silence; empty: not watched; the MAVLink bridge's is {manifest.GCS_HEARTBEAT.name}", read_only=True),
+    "unwatched_nodes": Spec([""], f"nodes whose liveness is not monitored [node names among {', '.join(WATCHED)}]",
+                            read_only=True),
 }
 
 
@@ -40,172 +68,185 @@ def default_policy() -> Path:
     return share_file("c4d_health", "config", "failsafe.yaml")
 
 
+@dataclass(frozen=True)
+class HealthConfig:
+    """The health node's parameters, checked: the policy, the link topic, the watched nodes."""
+
+    policy: FailsafePolicy
+    link_topic: str
+    watched: dict[str, manifest.Topic]
+
+    @classmethod
+    def declare(cls, node: Any) -> HealthConfig:
+        """Declare the parameters on `node`; ParameterError / PolicyError name what is wrong."""
+        values = declare_all(node, PARAMETERS)
+        unwatched = {name for name in values["unwatched_nodes"] if name}
+        if unwatched - set(WATCHED):
+            raise ParameterError(f"parameter 'unwatched_nodes': unknown node(s) {', '.join(sorted(unwatched - set(WATCHED)))} "
+                                 f"(watched: {', '.join(WATCHED)})")
+        policy = FailsafePolicy.from_yaml(values["policy_file"] or default_policy())
+        return cls(policy, values["link_topic"], {n: t for n, t in WATCHED.items() if n not in unwatched})
+
+
+def estimate_of(msg: VehicleState) -> Estimate:
+    """The part of navigation/state that health judges."""
+    home = GeoOrigin(msg.origin.latitude, msg.origin.longitude, msg.origin.altitude) \
+        if msg.valid & VehicleState.VALID_ORIGIN else None
+    position: Point3 = (msg.position.x, msg.position.y, msg.position.z)
+    return Estimate(bool(msg.valid & VehicleState.VALID_ATTITUDE), bool(msg.valid & VehicleState.VALID_POSITION_XY),
+                    position, home)
+
+
+class HealthNode:
+    """Maps the graph to the health logic: subscriptions keep the latest inputs, a 10 Hz tick
+    evaluates the events (events.py), lets the arbiter (policy.py) pick the failsafe action,
+    requests each escalation once and publishes health/summary and diagnostics."""
+
+    def __init__(self, node: Any, side_node: Any, config: HealthConfig) -> None:
+        self.node, self.config = node, config
+        self.arbiter = FailsafeArbiter(config.policy)
+        self.liveness = LivenessMonitor(config.watched, config.policy.node_timeout_s, TICK_S, self._now())
+        self.armed = self.in_air = False
+        self.gnss: GnssReport | None = None
+        self.battery_soc: float | None = None
+        self.geofence: Geofence | None = None
+        self.overruns_total: int | None = None
+        self.new_overruns = 0
+        self.link_heard: float | None = None
+        self.dead: tuple[str, ...] = ()
+        self.last_diagnostics = 0.0
+        self.pub_diagnostics = node.create_publisher(DiagnosticArray, manifest.DIAGNOSTICS.name, manifest.DIAGNOSTICS.qos)
+        self.pub_summary = node.create_publisher(DiagnosticStatus, manifest.HEALTH_SUMMARY.name, manifest.HEALTH_SUMMARY.qos)
+        self.mission_cmd = node.create_client(VehicleCommand, manifest.VEHICLE_COMMAND.name)
+        self.core_cmd = node.create_client(VehicleCommand, manifest.CORE_COMMAND.name)
+        # 500 Hz: sampled at the 10 Hz tick instead of waking the executor for every sample
+        self.state = LatestSampler(side_node, VehicleState, manifest.NAV_STATE.name, manifest.NAV_STATE.qos)
+        self._subscribe()
+        node.create_timer(TICK_S, self._tick)
+
+    def _now(self) -> float:
+        return self.node.get_clock().now().nanoseconds * 1e-9
+
+    def _subscribe(self) -> None:
+        """One subscription per topic: its data handler and/or the liveness of the node it proves alive."""
+        owners = {topic: name for name, topic in self.config.watched.items()}
+        for topic, msg_type, handle in (
+                (manifest.STATUS, VehicleStatus, self._on_status),
+                (manifest.P_HEALTH, DiagnosticArray, self._on_perception_health),
+                (manifest.BATTERY, BatteryState, self._on_battery),
+                (manifest.MISSION_PLAN, MissionPlan, self._on_plan),
+                (manifest.EXECUTOR_STATS, ExecutorStats, self._on_stats),
+                (manifest.NAV_ODOMETRY, Odometry, None),
+                (manifest.MISSION_STATE, MissionState, None)):
+            if handle is not None or topic in owners:
+                self.node.create_subscription(msg_type, topic.name, self._listener(handle, owners.get(topic)), topic.qos)
+        if self.config.link_topic:
+            self.node.create_subscription(Header, self.config.link_topic, self._on_link, manifest.GCS_HEARTBEAT.qos)
+
+    def _listener(self, handle: Callable[[Any], None] | None, owner: str | None) -> Callable[[Any], None]:
+        def on_message(msg: Any) -> None:
+            if owner is not None:
+                self.liveness.heard(owner, self._now())
+            if handle is not None:
+                handle(msg)
+        return on_message
+
+    def _on_status(self, msg: VehicleStatus) -> None:
+        self.armed, self.in_air = bool(msg.armed), msg.landed_state in IN_AIR
+
+    def _on_perception_health(self, msg: DiagnosticArray) -> None:
+        for s in msg.status:
+            if s.hardware_id == "gps":
+                self.gnss = GnssReport(s.level == DiagnosticStatus.OK, s.message)
+
+    def _on_battery(self, msg: BatteryState) -> None:
+        self.battery_soc = float(msg.percentage)
+
+    def _on_plan(self, msg: MissionPlan) -> None:
+        self.geofence = plan_from_msg(msg).geofence
+
+    def _on_stats(self, msg: ExecutorStats) -> None:
+        total = int(msg.overruns_total)
+        previous, self.overruns_total = self.overruns_total, total
+        self.new_overruns = total - previous if previous is not None and total > previous else 0
+
+    def _on_link(self, msg: Any) -> None:
+        self.link_heard = self._now()
+
+    def snapshot(self) -> HealthSnapshot:
+        state = self.state.latest()
+        link = LinkWatch(self.config.link_topic, self.link_heard) if self.config.link_topic else None
+        return HealthSnapshot(self.dead, self.gnss, estimate_of(state) if state is not None else None, self.battery_soc,
+                              self.geofence, link, self.new_overruns)
+
+    def _tick(self) -> None:
+        t = self._now()
+        if not self.armed and self.arbiter.action != Action.NONE:
+            self.arbiter.reset()
+        self.dead = tuple(self.liveness.dead(t))
+        active = evaluate(self.snapshot(), self.config.policy, t)
+        before = self.arbiter.action
+        action = self.arbiter.update(t, active, self.in_air)
+        if action > before:  # the action only escalates until reset: request each escalation once
+            self._request(action)
+        self._publish_summary(action, active)
+        if t - self.last_diagnostics >= DIAGNOSTICS_PERIOD_S:
+            self.last_diagnostics = t
+            self._publish_diagnostics(active)
+
+    def _request(self, action: Action) -> None:
+        via_mission = self.mission_cmd.service_is_ready() and "mission" not in self.dead
+        command = failsafe_command(action, via_mission)
+        if command is None:
+            return
+        client = self.mission_cmd if via_mission else self.core_cmd
+        future = client.call_async(self._command_request(command))
+        future.add_done_callback(lambda f: self._on_reply(f.result(), action, via_mission))
+        self.node.get_logger().warning(f"failsafe {action.name}: {self.arbiter.reason}")
+
+    @staticmethod
+    def _command_request(command: FailsafeCommand) -> Any:
+        return VehicleCommand.Request(command=int(command.command), mode=int(command.mode), force=True)
+
+    def _on_reply(self, reply: Any, action: Action, via_mission: bool) -> None:
+        if reply is not None and reply.result == CommandResult.ACCEPTED:
+            return
+        self.node.get_logger().error(f"failsafe {action.name} refused: {reply.message if reply else 'no reply'}")
+        fallback = failsafe_command(action, via_mission=False)
+        if via_mission and fallback is not None:  # fall back to the core directly
+            self.core_cmd.call_async(self._command_request(fallback))
+
+    def _publish_summary(self, action: Action, active: dict[str, str]) -> None:
+        acting = action >= Action.HOLD
+        level = DiagnosticStatus.ERROR if acting else (DiagnosticStatus.WARN if active else DiagnosticStatus.OK)
+        message = f"failsafe {action.name}: {self.arbiter.reason}" if acting else \
+            ("; ".join(f"{k}: {v}" for k, v in active.items()) or "ok")
+        summary = DiagnosticStatus(level=level, name="c4d/health", hardware_id="vehicle", message=message)
+        summary.values = [KeyValue(key="failsafe", value=action.name), KeyValue(key="reason", value=self.arbiter.reason),
+                          KeyValue(key="active", value=",".join(sorted(active))),
+                          KeyValue(key="dead_nodes", value=active.get(Event.NODE_DEAD, ""))]
+        self.pub_summary.publish(summary)
+
+    def _publish_diagnostics(self, active: dict[str, str]) -> None:
+        array = DiagnosticArray()
+        array.header.stamp = self.node.get_clock().now().to_msg()
+        for event in Event:
+            array.status.append(DiagnosticStatus(level=DiagnosticStatus.ERROR if event in active else DiagnosticStatus.OK,
+                                                 name=f"health/{event}", hardware_id="vehicle",
+                                                 message=active.get(event, "ok")))
+        self.pub_diagnostics.publish(array)
+
+
 def main(argv: list[str] | None = None) -> int:
     from c4d_ros import node_runtime
 
     rclpy = node_runtime.init(argv)
-    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-    from nav_msgs.msg import Odometry
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from sensor_msgs.msg import BatteryState
-    from std_msgs.msg import Header
-
-    from c4d_common.plan_validation import leg_inside
-    from c4d_interfaces.msg import ExecutorStats, MissionPlan, MissionState, VehicleState, VehicleStatus
-    from c4d_interfaces.srv import VehicleCommand
-    from c4d_ros.plan_msgs import plan_from_msg
-
-    node = rclpy.create_node("health")
+    node = rclpy.create_node(NAME)
     try:
-        path = node.declare_parameter("policy_file", "").value
-        policy = FailsafePolicy.from_yaml(path or default_policy())
-    except PolicyError as exc:
-        return node_runtime.fail("health", str(exc), node)
-    link_topic = node.declare_parameter("link_topic", "").value
-    watched = dict(WATCHED)
-    for name in node.declare_parameter("unwatched_nodes", [""]).value:
-        watched.pop(name, None)
-    arbiter = FailsafeArbiter(policy)
-    best = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
-    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    pub_diag = node.create_publisher(DiagnosticArray, "diagnostics", 10)
-    pub_summary = node.create_publisher(DiagnosticStatus, "health/summary", latched)
-    mission_cmd = node.create_client(VehicleCommand, "vehicle/command")
-    core_cmd = node.create_client(VehicleCommand, "gnc/command")
-    w: dict = {"dead": [], "state": None, "status": None, "battery": None, "plan": None, "gps": None, "overruns": None,
-               "overruns_new": 0, "link": None, "requested": Action.NONE, "last_diag": 0.0}
-
-    def now() -> float:
-        return node.get_clock().now().nanoseconds * 1e-9
-
-    liveness = LivenessMonitor(watched, policy.node_timeout_s, TICK_S, now())
-
-    def seen(name: str):
-        def mark(msg) -> None:
-            liveness.heard(name, now())
-        return mark
-
-    for name, topic in watched.items():
-        types = {"vehicle/status": VehicleStatus, "navigation/odometry": Odometry, "perception/health": DiagnosticArray,
-                 "mission/state": MissionState, "sensors/battery": BatteryState}
-        qos = latched if topic in ("vehicle/status", "mission/state") else (10 if topic == "perception/health" else best)
-        node.create_subscription(types[topic], topic, seen(name), qos)
-
-    def on_health(msg) -> None:
-        for s in msg.status:
-            if s.hardware_id == "gps":
-                w["gps"] = (s.level, s.message)
-
-    def on_stats(msg) -> None:
-        if w["overruns"] is not None and msg.overruns_total > w["overruns"]:
-            w["overruns_new"] = msg.overruns_total - w["overruns"]
-        else:
-            w["overruns_new"] = 0
-        w["overruns"] = msg.overruns_total
-
-    node.create_subscription(DiagnosticArray, "perception/health", on_health, 10)
-    # 500 Hz: sampled at the 10 Hz tick instead of waking the executor for every sample
-    state_sampler = LatestSampler(rclpy.create_node("_health_samples"), VehicleState, "navigation/state",
-                                  QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
-    node.create_subscription(VehicleStatus, "vehicle/status", lambda m: w.__setitem__("status", m), latched)
-    node.create_subscription(BatteryState, "sensors/battery", lambda m: w.__setitem__("battery", m), best)
-    node.create_subscription(MissionPlan, "mission/plan", lambda m: w.__setitem__("plan", plan_from_msg(m)), latched)
-    node.create_subscription(ExecutorStats, "gnc/executor_stats", on_stats, 10)
-    if link_topic:
-        node.create_subscription(Header, link_topic, lambda m: w.__setitem__("link", now()), best)
-
-    def events(t: float, dead: list[str]) -> dict[str, str]:
-        active: dict[str, str] = {}
-        if dead:
-            active["node_dead"] = ", ".join(dead)  # sorted by the monitor
-        if w["gps"] is not None and w["gps"][0] != DiagnosticStatus.OK:
-            active["gps_loss"] = f"GNSS {w['gps'][1]}"
-        s = w["state"]
-        needed = VehicleState.VALID_ATTITUDE | VehicleState.VALID_POSITION_XY
-        if s is not None and s.valid & needed != needed:
-            active["estimator_invalid"] = "position or attitude estimate not valid"
-        b = w["battery"]
-        if b is not None and math.isfinite(b.percentage):
-            if b.percentage < policy.battery_critical:
-                active["battery_critical"] = f"{b.percentage:.0%}"
-            elif b.percentage < policy.battery_low:
-                active["battery_low"] = f"{b.percentage:.0%}"
-        plan = w["plan"]
-        if plan is not None and s is not None and s.valid & VehicleState.VALID_ORIGIN:
-            home = GeoOrigin(s.origin.latitude, s.origin.longitude, s.origin.altitude)
-            here = (s.position.x, s.position.y)
-            fence = plan.geofence
-            if fence.polygon:
-                polygon = [home.to_enu(lat, lon, home.altitude)[:2] for lat, lon in fence.polygon]
-                if not leg_inside(here, here, polygon):
-                    active["geofence_breach"] = "outside the inclusion polygon"
-            if fence.max_altitude > 0 and s.position.z > fence.max_altitude:
-                active["geofence_breach"] = f"{s.position.z:.1f} m above the {fence.max_altitude:g} m ceiling"
-            if fence.max_distance > 0 and math.hypot(*here) > fence.max_distance:
-                active["geofence_breach"] = f"{math.hypot(*here):.0f} m from home"
-        if link_topic and (w["link"] is None or t - w["link"] > 3.0):
-            active["link_loss"] = f"no heartbeat on {link_topic} for 3 s"
-        if w["overruns_new"]:
-            active["executor_overrun"] = f"{w['overruns_new']} new overrun(s)"
-        return active
-
-    def request(action: Action) -> None:
-        commands = {Action.HOLD: (6, 0), Action.RTL: (5, 0), Action.LAND: (4, 0), Action.TERMINATE: (7, 5)}
-        if action not in commands:
-            return
-        command, mode = commands[action]
-        client = mission_cmd if mission_cmd.service_is_ready() and "mission" not in w["dead"] else core_cmd
-        if client is core_cmd and action == Action.RTL:
-            command = 4  # RTL needs the mission node: land instead
-        future = client.call_async(VehicleCommand.Request(command=command, mode=mode, force=True))
-
-        def done(f) -> None:
-            reply = f.result()
-            if reply is None or reply.result != 0:
-                node.get_logger().error(f"failsafe {action.name} refused: {reply.message if reply else 'no reply'}")
-                if client is mission_cmd:  # fall back to the core directly
-                    core_cmd.call_async(VehicleCommand.Request(command=4 if command == 5 else command, mode=mode,
-                                                               force=True))
-        future.add_done_callback(done)
-        node.get_logger().warning(f"failsafe {action.name}: {arbiter.reason}")
-
-    def tick() -> None:
-        t = now()
-        w["state"] = state_sampler.latest()
-        st = w["status"]
-        armed = st is not None and st.armed
-        in_air = st is not None and st.landed_state in (VehicleStatus.LANDED_IN_AIR, VehicleStatus.LANDED_TAKEOFF,
-                                                        VehicleStatus.LANDED_LANDING)
-        if not armed and arbiter.action != Action.NONE:
-            arbiter.reset()
-            w["requested"] = Action.NONE
-        w["dead"] = liveness.dead(t)
-        active = events(t, w["dead"])
-        action = arbiter.update(t, active, in_air)
-        if action > w["requested"]:
-            w["requested"] = action
-            request(action)
-        level = DiagnosticStatus.ERROR if action >= Action.HOLD else (DiagnosticStatus.WARN if active else DiagnosticStatus.OK)
-        summary = DiagnosticStatus(level=level, name="c4d/health", hardware_id="vehicle",
-                                   message=f"failsafe {action.name}: {arbiter.reason}" if action >= Action.HOLD else
-                                   ("ok" if not active else "; ".join(f"{k}: {v}" for k, v in active.items())))
-        summary.values = [KeyValue(key="failsafe", value=action.name), KeyValue(key="reason", value=arbiter.reason),
-                          KeyValue(key="active", value=",".join(sorted(active))),
-                          KeyValue(key="dead_nodes", value=active.get("node_dead", ""))]
-        pub_summary.publish(summary)
-        if t - w["last_diag"] >= 1.0:
-            w["last_diag"] = t
-            array = DiagnosticArray()
-            array.header.stamp = node.get_clock().now().to_msg()
-            for event in ("node_dead", "gps_loss", "estimator_invalid", "battery_low", "battery_critical",
-                          "geofence_breach", "link_loss", "executor_overrun"):
-                on = event in active
-                array.status.append(DiagnosticStatus(level=DiagnosticStatus.ERROR if on else DiagnosticStatus.OK,
-                                                     name=f"health/{event}", hardware_id="vehicle",
-                                                     message=active.get(event, "ok")))
-            pub_diag.publish(array)
-
-    node.create_timer(TICK_S, tick)
+        config = HealthConfig.declare(node)
+    except (ParameterError, PolicyError) as exc:
+        return node_runtime.fail(NAME, str(exc), node)
+    HealthNode(node, rclpy.create_node(manifest.side_node_name(NAME)), config)
     return node_runtime.spin_node(node, events_executor=False)
 
 

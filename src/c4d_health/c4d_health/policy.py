@@ -10,23 +10,29 @@ disarm), so the vehicle never flips between, say, RTL and land as conditions fli
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import IntEnum
+from enum import StrEnum
 from pathlib import Path
 
 import yaml
 
-
-class Action(IntEnum):  # VehicleStatus.FAILSAFE_* numbering
-    NONE = 0
-    WARN = 1
-    HOLD = 2
-    RTL = 3
-    LAND = 4
-    TERMINATE = 5
+from c4d_common.vehicle import FailsafeAction as Action  # VehicleStatus.FAILSAFE_*; order = severity
 
 
-EVENTS = ("gps_loss", "estimator_invalid", "battery_low", "battery_critical", "geofence_breach", "link_loss",
-          "node_dead", "executor_overrun")
+class Event(StrEnum):
+    """The monitored conditions (policy keys, diagnostics names `health/<event>`), in the order
+    they are evaluated and reported."""
+
+    NODE_DEAD = "node_dead"
+    GPS_LOSS = "gps_loss"
+    ESTIMATOR_INVALID = "estimator_invalid"
+    BATTERY_LOW = "battery_low"
+    BATTERY_CRITICAL = "battery_critical"
+    GEOFENCE_BREACH = "geofence_breach"
+    LINK_LOSS = "link_loss"
+    EXECUTOR_OVERRUN = "executor_overrun"
+
+
+EVENTS = tuple(e.value for e in Event)
 
 
 class PolicyError(ValueError):

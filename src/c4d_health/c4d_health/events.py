@@ -1,0 +1,90 @@
+"""Failsafe event evaluation: which monitored conditions are true right now.
+
+What: `evaluate(snapshot, policy, t)` turns a `HealthSnapshot` (the latest of everything the
+health node hears: dead nodes, GNSS health, the estimate, battery, the plan's geofence, the
+ground link, executor overruns) into the active events, each with a detail for people:
+`{Event.BATTERY_LOW: "28%"}`. The `FailsafeArbiter` (policy.py) then decides the action.
+
+Why a pure function over a snapshot: every failsafe condition is tested without DDS
+(test/test_events.py), and the node only copies messages into the snapshot. Decisions use the
+typed fields (levels, flags, `BreachKind`), never the wording of a message; the geofence is the
+one check pre-flight validation uses too (`c4d_common.geofence.LocalFence`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.geofence import LocalFence, Point3
+from c4d_common.plan import Geofence
+
+from .policy import Event, FailsafePolicy
+
+LINK_TIMEOUT_S = 3.0  # no heartbeat on the link topic for this long: link lost
+
+
+@dataclass(frozen=True)
+class GnssReport:
+    """perception/health's `gps` status: ok (diagnostic level OK) and its message."""
+
+    ok: bool
+    message: str
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """What health needs of navigation/state."""
+
+    attitude_valid: bool
+    position_xy_valid: bool
+    position: Point3  # ENU [m] from home
+    home: GeoOrigin | None  # the estimator's origin; None while it is not set
+
+
+@dataclass(frozen=True)
+class LinkWatch:
+    """The ground-link heartbeat topic and when it was last heard (None: never)."""
+
+    topic: str
+    last_heard: float | None
+
+
+@dataclass(frozen=True)
+class HealthSnapshot:
+    """The latest state the monitors judge; None = nothing received (no event)."""
+
+    dead_nodes: tuple[str, ...] = ()  # sorted
+    gnss: GnssReport | None = None
+    estimate: Estimate | None = None
+    battery_soc: float | None = None  # state of charge 0..1, NaN = unknown
+    geofence: Geofence | None = None  # of the active plan
+    link: LinkWatch | None = None  # None: the link is not watched
+    new_overruns: int = 0  # executor overruns since the previous statistics message
+
+
+def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict[str, str]:
+    """Active events at time `t` [s] → detail, in `Event` order (the arbiter's tie-break)."""
+    active: dict[str, str] = {}
+    s = snapshot
+    if s.dead_nodes:
+        active[Event.NODE_DEAD] = ", ".join(s.dead_nodes)
+    if s.gnss is not None and not s.gnss.ok:
+        active[Event.GPS_LOSS] = f"GNSS {s.gnss.message}"
+    if s.estimate is not None and not (s.estimate.attitude_valid and s.estimate.position_xy_valid):
+        active[Event.ESTIMATOR_INVALID] = "position or attitude estimate not valid"
+    if s.battery_soc is not None and math.isfinite(s.battery_soc):
+        if s.battery_soc < policy.battery_critical:
+            active[Event.BATTERY_CRITICAL] = f"{s.battery_soc:.0%}"
+        elif s.battery_soc < policy.battery_low:
+            active[Event.BATTERY_LOW] = f"{s.battery_soc:.0%}"
+    if s.geofence is not None and s.estimate is not None and s.estimate.home is not None:
+        breach = LocalFence.from_geofence(s.geofence, s.estimate.home).breach(s.estimate.position)
+        if breach is not None:
+            active[Event.GEOFENCE_BREACH] = breach.text
+    if s.link is not None and (s.link.last_heard is None or t - s.link.last_heard > LINK_TIMEOUT_S):
+        active[Event.LINK_LOSS] = f"no heartbeat on {s.link.topic} for {LINK_TIMEOUT_S:g} s"
+    if s.new_overruns:
+        active[Event.EXECUTOR_OVERRUN] = f"{s.new_overruns} new overrun(s)"
+    return active

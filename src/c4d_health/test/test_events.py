@@ -1,0 +1,106 @@
+"""Failsafe event evaluation without DDS: each event from a HealthSnapshot, and none from wording."""
+
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.geofence import BreachKind, LocalFence
+from c4d_common.plan import Geofence
+from c4d_health.events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, evaluate
+from c4d_health.policy import EVENTS, Event, FailsafePolicy
+
+POLICY = FailsafePolicy.from_yaml(Path(__file__).resolve().parents[1] / "config" / "failsafe.yaml")
+HOME = GeoOrigin(43.5630, 1.4816, 150.0)
+GOOD = Estimate(attitude_valid=True, position_xy_valid=True, position=(0.0, 0.0, 10.0), home=HOME)
+HEALTHY = HealthSnapshot(gnss=GnssReport(True, "ok"), estimate=GOOD, battery_soc=0.9, geofence=Geofence(),
+                         link=LinkWatch("bridge/gcs_heartbeat", 99.0))
+T = 100.0
+
+
+def square(half_m: float) -> tuple[tuple[float, float], ...]:
+    """A square inclusion polygon of ±half_m around HOME, as (lat, lon)."""
+    corners = [(-half_m, -half_m), (half_m, -half_m), (half_m, half_m), (-half_m, half_m)]
+    return tuple(HOME.to_geodetic(e, n, 0.0)[:2] for e, n in corners)
+
+
+def events(**changes) -> dict[str, str]:
+    return evaluate(replace(HEALTHY, **changes), POLICY, T)
+
+
+def at(x: float, y: float, z: float = 10.0) -> Estimate:
+    return replace(GOOD, position=(x, y, z))
+
+
+def test_a_healthy_or_empty_snapshot_has_no_event():
+    assert evaluate(HEALTHY, POLICY, T) == {}
+    assert evaluate(HealthSnapshot(), POLICY, T) == {}  # nothing heard yet: nothing to judge
+
+
+def test_event_names_are_the_policy_events():
+    assert set(EVENTS) == {e.value for e in Event} and set(POLICY.rules) <= set(EVENTS)
+
+
+def test_dead_nodes():
+    assert events(dead_nodes=("mission", "sim")) == {"node_dead": "mission, sim"}
+
+
+def test_gnss_loss_is_decided_by_the_level_not_the_message():
+    assert events(gnss=GnssReport(False, "stale")) == {"gps_loss": "GNSS stale"}
+    assert events(gnss=GnssReport(False, "ok")) == {"gps_loss": "GNSS ok"}
+    assert events(gnss=GnssReport(True, "stale, no fix, lost")) == {}
+
+
+@pytest.mark.parametrize("attitude,position", [(False, True), (True, False), (False, False)])
+def test_estimator_invalid(attitude, position):
+    estimate = replace(GOOD, attitude_valid=attitude, position_xy_valid=position)
+    assert events(estimate=estimate) == {"estimator_invalid": "position or attitude estimate not valid"}
+
+
+def test_battery_low_then_critical_never_both():
+    assert events(battery_soc=0.29) == {"battery_low": "29%"}
+    assert events(battery_soc=0.14) == {"battery_critical": "14%"}
+    assert events(battery_soc=POLICY.battery_low) == {}  # strictly below the threshold
+    assert events(battery_soc=float("nan")) == {}  # unknown state of charge
+    assert events(battery_soc=None) == {}
+
+
+def test_geofence_polygon_ceiling_distance():
+    fence = Geofence(polygon=square(20.0), max_altitude=30.0, max_distance=25.0)
+    assert events(geofence=fence, estimate=at(10.0, -10.0)) == {}
+    assert events(geofence=fence, estimate=at(21.0, 0.0)) == {"geofence_breach": "outside the inclusion polygon"}
+    assert events(geofence=fence, estimate=at(0.0, 0.0, 31.0)) == {"geofence_breach": "31.0 m above the 30 m ceiling"}
+    assert events(geofence=fence, estimate=at(18.0, 18.0)) == {"geofence_breach": "25 m from home (limit 25 m)"}
+
+
+def test_geofence_is_the_shared_check():
+    """The detail is LocalFence.breach's (the one check pre-flight validation uses)."""
+    fence = Geofence(max_distance=15.0)
+    breach = LocalFence.from_geofence(fence, HOME).breach((20.0, 0.0, 10.0))
+    assert breach is not None and breach.kind == BreachKind.DISTANCE
+    assert events(geofence=fence, estimate=at(20.0, 0.0)) == {"geofence_breach": breach.text}
+
+
+def test_no_geofence_event_without_a_fence_or_a_home():
+    assert events(geofence=None, estimate=at(1e4, 0.0)) == {}
+    assert events(geofence=Geofence(max_distance=15.0), estimate=replace(at(20.0, 0.0), home=None)) == {}
+
+
+def test_link_loss_after_the_timeout_or_never_heard():
+    topic = "bridge/gcs_heartbeat"
+    assert events(link=LinkWatch(topic, T - LINK_TIMEOUT_S)) == {}
+    lost = {"link_loss": f"no heartbeat on {topic} for 3 s"}
+    assert events(link=LinkWatch(topic, T - LINK_TIMEOUT_S - 0.1)) == lost
+    assert events(link=LinkWatch(topic, None)) == lost
+    assert events(link=None) == {}  # not watched
+
+
+def test_executor_overrun():
+    assert events(new_overruns=2) == {"executor_overrun": "2 new overrun(s)"}
+
+
+def test_events_come_in_event_order():
+    everything = HealthSnapshot(("sim",), GnssReport(False, "lost"), replace(at(99.0, 0.0), attitude_valid=False), 0.1,
+                                Geofence(max_distance=15.0), LinkWatch("link", None), 1)
+    assert list(evaluate(everything, POLICY, T)) == [e for e in Event if e != Event.BATTERY_LOW]
