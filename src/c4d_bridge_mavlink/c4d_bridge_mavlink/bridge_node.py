@@ -8,10 +8,8 @@ would use (vehicle/command, mission/upload, mission/control, <node>/set_paramete
 bridge adds no authority of its own.
 
 MANUAL_CONTROL (pilot sticks) becomes an ATTITUDE / RATE-level guidance/setpoint while the core is
-in that mode (manual.py). Parameters: endpoints (["udpin:127.0.0.1:14550"]), sysid (0 = SYSID_THISMAV),
-airframe (quad_x: the thrust stick's centre is its hover command), udp_rate_bytes_s
-(UDP link budget for the telemetry scheduler), config (stream intervals YAML), param_file
-(persisted MAVLink parameters), signing_key_file ("" = signing off).
+in that mode (manual.py). Parameters: PARAMETERS below (endpoints, sysid, airframe, udp_rate_bytes_s,
+config, param_file, signing_key_file; all read-only: they are taken at start).
 Topics out: bridge/gcs_heartbeat (std_msgs/Header per GCS heartbeat; health's link_topic),
 bridge/link_stats (diagnostic_msgs/DiagnosticArray, 1 Hz).
 """
@@ -21,21 +19,26 @@ from __future__ import annotations
 import signal
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import yaml
 
+from c4d_common.airframe import AirframeError, default_airframe_path, load_airframe
 from c4d_common.share import share_file
+from c4d_ros.params import ParameterError, Spec, declare_all
 
 from . import encoders as enc
 from .bridge_ros import RosSide
 from .commands import Context, translate
 from .link_monitor import LinkMonitor
+from .manual import PilotInput
 from .mission_protocol import MissionServer
 from .params import ParamServer
-from .signing import SigningConfig, SigningError, mavlink
+from .signing import SigningConfig, mavlink
 from .telemetry import LinkBudget, TelemetryScheduler
-from .transport import Router, parse_endpoint_url
+from .transport import Received, Router, parse_endpoint_url
 
 M = mavlink
 
@@ -75,131 +78,195 @@ STREAM_ENCODERS = {
 }
 
 
-def main(argv: list[str] | None = None) -> int:
-    from c4d_ros import node_runtime
+PARAMETERS: dict[str, Spec] = {
+    "endpoints": Spec(["udpin:127.0.0.1:14550"], "MAVLink endpoints, each udpin:[HOST:]PORT, udpout:HOST:PORT or "
+                      "serial:DEVICE:BAUD [URL list]", read_only=True),
+    "sysid": Spec(0, "MAVLink system id of the vehicle; 0 = the SYSID_THISMAV parameter [id]", 0, 255, read_only=True),
+    "airframe": Spec("quad_x", "airframe whose hover command is the centre of the pilot's thrust stick [name]", read_only=True),
+    "udp_rate_bytes_s": Spec(100_000, "UDP link budget of the telemetry scheduler [bytes/s]", 1000, 1_000_000_000,
+                             read_only=True),
+    "config": Spec("", "telemetry stream rates YAML; '' = the installed config/bridge.yaml [path]", read_only=True),
+    "param_file": Spec(str(Path.home() / ".local/share/c4d/bridge_params.yaml"),
+                       "YAML file the MAVLink parameters persist in; '' = not persisted [path]", read_only=True),
+    "signing_key_file": Spec("", "MAVLink 2 signing key file; '' = signing off [path]", read_only=True),
+}
 
-    rclpy = node_runtime.init(argv)
-    node = rclpy.create_node("bridge")
-    urls = list(node.declare_parameter("endpoints", ["udpin:127.0.0.1:14550"]).value)
-    sysid_param = int(node.declare_parameter("sysid", 0).value)
-    udp_rate = int(node.declare_parameter("udp_rate_bytes_s", 100_000).value)
-    config = node.declare_parameter("config", "").value
-    param_file = node.declare_parameter("param_file", str(Path.home() / ".local/share/c4d/bridge_params.yaml")).value
-    key_file = node.declare_parameter("signing_key_file", "").value
-    try:
-        streams = load_streams(Path(config) if config else default_config())
-        signing = SigningConfig.from_file(key_file) if key_file else None
-        for url in urls:
-            parse_endpoint_url(url)
-        if udp_rate < 1000:
-            raise ValueError("udp_rate_bytes_s must be >= 1000")
-    except (ValueError, SigningError) as exc:
-        return node_runtime.fail("bridge", str(exc), node)
-    airframe = node.declare_parameter("airframe", "quad_x").value
-    try:
-        from c4d_common.airframe import AirframeError, default_airframe_path, load_airframe
 
-        hover = load_airframe(default_airframe_path(airframe)).hover_command  # centre of the pilot's thrust stick
-    except (AirframeError, OSError) as exc:
-        return node_runtime.fail("bridge", f"airframe '{airframe}': {exc}", node)
-    ros = RosSide(node)
-    params = ParamServer(lambda m: router.send(m), Path(param_file) if param_file else None, apply=ros.set_node_parameter)
-    for problem in params.load_errors:
-        node.get_logger().warning(problem)
-    sysid = sysid_param or int(params.get("SYSID_THISMAV"))
-    try:
-        router = Router(urls, sysid=sysid, signing=signing)
-    except ValueError as exc:
-        return node_runtime.fail("bridge", str(exc), node)
-    snap = ros.snapshot
-    monitor = LinkMonitor(params.get("COM_DL_LOSS_T"))
-    missions = MissionServer(lambda m: router.send(m), on_upload=ros.upload_mission, on_clear=ros.clear_mission,
-                             on_set_current=ros.set_current_item)
-    ros.bind(router, missions, params)
-    schedulers: dict[str, TelemetryScheduler] = {}
-    now = time.monotonic()
-    for name, endpoint in router.endpoints.items():
-        url = parse_endpoint_url(name)
-        budget = LinkBudget.serial(url.number) if url.kind == "serial" else LinkBudget.udp(udp_rate)
-        sched = TelemetryScheduler(budget, pack=endpoint.pack, signed=signing is not None, queue_bytes=2048)
-        for msg_id, interval in streams.items():
-            encode = STREAM_ENCODERS[M.mavlink_map[msg_id].msgname]
-            sched.add_stream(msg_id, interval, lambda e=encode: e(snap, time.monotonic()))
-        sched.start(now)
-        schedulers[name] = sched
-    stopping: list[int] = []
-    signal.signal(signal.SIGINT, lambda s, f: stopping.append(s))
-    signal.signal(signal.SIGTERM, lambda s, f: stopping.append(s))
-    node.get_logger().info(f"bridge: sysid {sysid}, endpoints {', '.join(urls)}, {len(streams)} telemetry streams"
-                           f"{', signing on' if signing else ''}")
+class SettingsError(ValueError):
+    """The bridge cannot start with this configuration (one line)."""
 
-    def handle_command(msg) -> None:
-        action = translate(msg, Context(snap.home, params.get("MIS_TAKEOFF_ALT"), snap.mission_state == 3))
-        ack = lambda result, reason="": ros.ack(msg, result, reason)  # noqa: E731
+
+@dataclass(frozen=True)
+class BridgeSettings:
+    """The checked start configuration of the bridge (from PARAMETERS and the files they name)."""
+
+    urls: tuple[str, ...]
+    sysid: int  # 0 = SYSID_THISMAV
+    udp_rate: int  # [bytes/s]
+    streams: dict[int, int]  # msg_id → interval [us] (-1 = off)
+    param_file: Path | None
+    signing: SigningConfig | None
+    hover: float  # the airframe's hover command: centre of the thrust stick
+
+    @classmethod
+    def from_parameters(cls, values: dict[str, Any]) -> BridgeSettings:
+        """Settings from the declared parameter values; SettingsError names what is unusable."""
+        urls, config, key_file = tuple(values["endpoints"]), values["config"], values["signing_key_file"]
+        try:
+            streams = load_streams(Path(config) if config else default_config())
+            signing = SigningConfig.from_file(key_file) if key_file else None
+            for url in urls:
+                parse_endpoint_url(url)
+        except ValueError as exc:  # SigningError is one
+            raise SettingsError(str(exc)) from None
+        try:
+            hover = load_airframe(default_airframe_path(values["airframe"])).hover_command
+        except (AirframeError, OSError) as exc:
+            raise SettingsError(f"airframe '{values['airframe']}': {exc}") from None
+        param_file = values["param_file"]
+        return cls(urls, values["sysid"], values["udp_rate_bytes_s"], streams, Path(param_file) if param_file else None,
+                   signing, hover)
+
+
+class BridgeNode:
+    """The bridge loop's parts and one step of it: MAVLink in → protocol servers / ROS services,
+    telemetry out on every endpoint's scheduler, ROS topics into the snapshot, link statistics."""
+
+    def __init__(self, node, settings: BridgeSettings) -> None:
+        self.ros = RosSide(node)
+        self.snap = self.ros.snapshot
+        self.params = ParamServer(self._send, settings.param_file, apply=self.ros.set_node_parameter)
+        for problem in self.params.load_errors:
+            node.get_logger().warning(problem)
+        self.sysid = settings.sysid or int(self.params.get("SYSID_THISMAV"))
+        try:
+            self.router = Router(list(settings.urls), sysid=self.sysid, signing=settings.signing)
+        except ValueError as exc:
+            raise SettingsError(str(exc)) from None
+        self.monitor = LinkMonitor(self.params.get("COM_DL_LOSS_T"))
+        self.missions = MissionServer(self._send, on_upload=self.ros.upload_mission, on_clear=self.ros.clear_mission,
+                                      on_set_current=self.ros.set_current_item)
+        self.ros.bind(self.router, self.missions, self.params)
+        self.pilot = PilotInput(settings.hover)
+        self.schedulers = self._schedulers(settings, time.monotonic())
+        self.last_stats = 0.0
+        node.get_logger().info(f"bridge: sysid {self.sysid}, endpoints {', '.join(settings.urls)}, "
+                               f"{len(settings.streams)} telemetry streams{', signing on' if settings.signing else ''}")
+
+    def _send(self, msg) -> None:
+        self.router.send(msg)
+
+    def _schedulers(self, settings: BridgeSettings, now: float) -> dict[str, TelemetryScheduler]:
+        """One telemetry scheduler per endpoint, budgeted by its link (serial baud rate or the UDP budget)."""
+        schedulers: dict[str, TelemetryScheduler] = {}
+        for name, endpoint in self.router.endpoints.items():
+            url = parse_endpoint_url(name)
+            budget = LinkBudget.serial(url.number) if url.kind == "serial" else LinkBudget.udp(settings.udp_rate)
+            sched = TelemetryScheduler(budget, pack=endpoint.pack, signed=settings.signing is not None, queue_bytes=2048)
+            for msg_id, interval in settings.streams.items():
+                encode = STREAM_ENCODERS[M.mavlink_map[msg_id].msgname]
+                sched.add_stream(msg_id, interval, lambda e=encode: e(self.snap, time.monotonic()))
+            sched.start(now)
+            schedulers[name] = sched
+        return schedulers
+
+    def run(self) -> None:
+        """Loop until SIGINT / SIGTERM (or ROS shutdown), then close the endpoints and the ROS side."""
+        import rclpy
+
+        stopping: list[int] = []
+        signal.signal(signal.SIGINT, lambda s, f: stopping.append(s))
+        signal.signal(signal.SIGTERM, lambda s, f: stopping.append(s))
+        try:
+            while not stopping and rclpy.ok():
+                self.step()
+        finally:
+            self.router.close()
+            self.ros.shutdown()
+
+    def step(self) -> None:
+        self.ros.spin_once()
+        now = time.monotonic()
+        wait = min([max(0.0, s.next_event() - now) for s in self.schedulers.values()] + [0.004])
+        for received in self.router.poll(wait):
+            self.on_message(received)
+        now = time.monotonic()
+        for name, sched in self.schedulers.items():
+            for frame in sched.advance(now):
+                self.router.endpoints[name].write(frame.data)
+        self.missions.poll(now)
+        self.ros.tick(now)
+        if now - self.last_stats >= 1.0:
+            self.last_stats = now
+            self.ros.publish_link_stats(self.router, self.schedulers, self.monitor.status(now), now)
+            self.monitor.timeout_s = self.params.get("COM_DL_LOSS_T")
+
+    def on_message(self, received: Received) -> None:
+        self.monitor.observe(received, time.monotonic())
+        msg, kind = received.message, received.message.get_type()
+        if kind == "HEARTBEAT" and msg.type == M.MAV_TYPE_GCS:
+            self.ros.gcs_heartbeat()
+        elif kind.startswith("MISSION_"):
+            self.missions.handle(msg, time.monotonic())
+        elif kind.startswith("PARAM_"):
+            self.params.handle(msg)
+        elif kind in ("COMMAND_LONG", "COMMAND_INT"):
+            self.on_command(msg)
+        elif kind == "MANUAL_CONTROL" and msg.target == self.sysid:
+            sp = self.pilot.setpoint(msg.x, msg.y, msg.z, msg.r, self.snap.flight_mode, self.snap.orientation,
+                                     time.monotonic())
+            if sp is not None:
+                self.ros.publish_pilot(sp)
+
+    def on_command(self, msg) -> None:
+        """COMMAND_LONG / COMMAND_INT: translate, execute, COMMAND_ACK (commands.py)."""
+        snap = self.snap
+        action = translate(msg, Context(snap.home, self.params.get("MIS_TAKEOFF_ALT"),
+                                        snap.mission_state == M.MISSION_STATE_ACTIVE))
+        ack = lambda result, reason="": self.ros.ack(msg, result, reason)  # noqa: E731
         if action.kind == "ack":
             ack(action.result, action.reason)
         elif action.kind == "vehicle":
-            ros.vehicle_command(action.fields, ack)
+            self.ros.vehicle_command(action.fields, ack)
         elif action.kind == "mission":
-            ros.mission_control(action.fields, ack)
+            self.ros.mission_control(action.fields, ack)
         elif action.kind == "interval":
             try:
-                for sched in schedulers.values():
+                for sched in self.schedulers.values():
                     sched.set_interval(action.fields["msg_id"], action.fields["interval_us"], time.monotonic())
                 ack(M.MAV_RESULT_ACCEPTED)
             except ValueError as exc:
                 ack(M.MAV_RESULT_DENIED, str(exc))
         elif action.kind == "request":
-            reply = one_shot(action.fields["msg_id"])
+            reply = self.one_shot(action.fields["msg_id"])
             # DENIED without a STATUSTEXT: GCSs probe many optional messages; no log noise for each
             ack(M.MAV_RESULT_ACCEPTED if reply is not None else M.MAV_RESULT_DENIED)
             if reply is not None:
-                router.send(reply)
+                self.router.send(reply)
 
-    def one_shot(msg_id: int):
+    def one_shot(self, msg_id: int):
+        """The reply to REQUEST_MESSAGE for `msg_id`, or None when it cannot be sent."""
         if msg_id == M.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
-            return enc.autopilot_version(sysid)
+            return enc.autopilot_version(self.sysid)
         if msg_id == M.MAVLINK_MSG_ID_MESSAGE_INTERVAL:
             return None
         name = M.mavlink_map[msg_id].msgname if msg_id in M.mavlink_map else ""
         encode = STREAM_ENCODERS.get(name)
-        return encode(snap, time.monotonic()) if encode else None
+        return encode(self.snap, time.monotonic()) if encode else None
 
-    last_stats = 0.0
+
+def main(argv: list[str] | None = None) -> int:
+    from c4d_ros import node_runtime
+
+    rclpy = node_runtime.init(argv)
+    node = rclpy.create_node("bridge")
     try:
-        while not stopping and rclpy.ok():
-            ros.spin_once()
-            now = time.monotonic()
-            wait = min([max(0.0, s.next_event() - now) for s in schedulers.values()] + [0.004])
-            for received in router.poll(wait):
-                monitor.observe(received, time.monotonic())
-                msg, kind = received.message, received.message.get_type()
-                if kind == "HEARTBEAT" and msg.type == M.MAV_TYPE_GCS:
-                    ros.gcs_heartbeat()
-                elif kind.startswith("MISSION_"):
-                    missions.handle(msg, time.monotonic())
-                elif kind.startswith("PARAM_"):
-                    params.handle(msg)
-                elif kind in ("COMMAND_LONG", "COMMAND_INT"):
-                    handle_command(msg)
-                elif kind == "MANUAL_CONTROL" and msg.target == sysid:
-                    ros.manual_control(msg, time.monotonic(), hover)
-            now = time.monotonic()
-            for name, sched in schedulers.items():
-                for frame in sched.advance(now):
-                    router.endpoints[name].write(frame.data)
-            missions.poll(now)
-            ros.tick(now)
-            if now - last_stats >= 1.0:
-                last_stats = now
-                ros.publish_link_stats(router, schedulers, monitor.status(now), now)
-                monitor.timeout_s = params.get("COM_DL_LOSS_T")
-    finally:
-        router.close()
-        ros.shutdown()
+        bridge = BridgeNode(node, BridgeSettings.from_parameters(declare_all(node, PARAMETERS)))
+    except (ParameterError, SettingsError) as exc:
+        return node_runtime.fail("bridge", str(exc), node)
+    bridge.run()
     return 0
 
 
 if __name__ == "__main__":
     sys.exit(main())
-

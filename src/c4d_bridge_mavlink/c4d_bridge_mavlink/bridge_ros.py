@@ -10,22 +10,42 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
-from c4d_common import quat
 from c4d_common.geodesy import GeoOrigin
-from c4d_common.mavlink_items import item_from_mavlink, item_to_mavlink
+from c4d_common.mavlink_items import ItemProblem, MavlinkItemError, item_from_mavlink, item_to_mavlink
 from c4d_common.plan import Geofence, Plan, PlanError
+from c4d_common.vehicle import CommandResult, FailsafeAction, MissionAction, MissionStatus
+from c4d_ros import manifest as topics
 from c4d_ros.drain import LatestSampler
 
 from .encoders import Snapshot
+from .manual import PilotSetpoint
 from .mission_protocol import FENCE, MISSION, WireItem
 from .params import ParamSpec
 from .signing import mavlink
 
 M = mavlink
-FAILSAFE_NAMES = ("NONE", "WARN", "HOLD", "RTL", "LAND", "TERMINATE")
-MISSION_STATE = {0: M.MISSION_STATE_NO_MISSION, 1: M.MISSION_STATE_NOT_STARTED, 2: M.MISSION_STATE_ACTIVE,
-                 3: M.MISSION_STATE_PAUSED, 4: M.MISSION_STATE_COMPLETE, 5: M.MISSION_STATE_PAUSED}
+MISSION_STATE = {MissionStatus.NO_PLAN: M.MISSION_STATE_NO_MISSION, MissionStatus.READY: M.MISSION_STATE_NOT_STARTED,
+                 MissionStatus.ACTIVE: M.MISSION_STATE_ACTIVE, MissionStatus.PAUSED: M.MISSION_STATE_PAUSED,
+                 MissionStatus.COMPLETED: M.MISSION_STATE_COMPLETE, MissionStatus.ABORTED: M.MISSION_STATE_PAUSED}
+WIRE_FRAME = {M.MAV_FRAME_GLOBAL_RELATIVE_ALT: M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}  # downloads use the _INT frames
+ITEM_RESULT = {ItemProblem.FRAME: M.MAV_MISSION_UNSUPPORTED_FRAME, ItemProblem.COMMAND: M.MAV_MISSION_UNSUPPORTED,
+               ItemProblem.VALUE: M.MAV_MISSION_INVALID}  # MISSION_ACK type for an item the plan cannot take
+
+
+def failsafe_action(name: str) -> FailsafeAction:
+    """health/summary's failsafe value (an action name) as the enum; unknown names count as NONE."""
+    return FailsafeAction.__members__.get(name, FailsafeAction.NONE)
+
+
+@dataclass
+class Reported:
+    """What the GCS was last told, so that events are sent once per change."""
+
+    reached: int = -1  # last MISSION_ITEM_REACHED
+    failsafe: str = FailsafeAction.NONE.name
+    dead: str = ""  # dead nodes of the last "node lost" STATUSTEXT
 
 
 class RosSide:
@@ -33,42 +53,42 @@ class RosSide:
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
         from rclpy.executors import SingleThreadedExecutor
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from sensor_msgs.msg import BatteryState, NavSatFix
         from std_msgs.msg import Header
 
-        from c4d_interfaces.msg import CaptureEvent, ExecutorStats, MissionPlan, MissionState, VehicleState, VehicleStatus
+        from c4d_interfaces.msg import (
+            CaptureEvent,
+            ExecutorStats,
+            GuidanceSetpoint,
+            MissionPlan,
+            MissionState,
+            VehicleState,
+            VehicleStatus,
+        )
         from c4d_interfaces.srv import MissionControl, UploadMission, VehicleCommand
 
         self.node = node
         self.snapshot = Snapshot(boot_s=time.monotonic())
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        best = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
-        self.state = LatestSampler(rclpy.create_node("_bridge_samples"), VehicleState, "navigation/state", best)
-        node.create_subscription(VehicleStatus, "vehicle/status", self._on_status, latched)
-        node.create_subscription(BatteryState, "sensors/battery", self._on_battery, best)
-        node.create_subscription(NavSatFix, "perception/gps", self._on_gps,
-                                 QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT))
-        node.create_subscription(MissionState, "mission/state", self._on_mission, latched)
-        node.create_subscription(MissionPlan, "mission/plan", self._on_plan, latched)
-        node.create_subscription(DiagnosticStatus, "health/summary", self._on_health, latched)
-        node.create_subscription(CaptureEvent, "payload/captures", self._on_capture, 10)
-        node.create_subscription(ExecutorStats, "gnc/executor_stats", self._on_stats, 10)
-        self.pub_heartbeat = node.create_publisher(Header, "bridge/gcs_heartbeat", best)
-        from c4d_interfaces.msg import GuidanceSetpoint
-
-        self.pub_pilot = node.create_publisher(GuidanceSetpoint, "guidance/setpoint", best)
-        self.pilot_state = {"yaw": math.nan, "t": -math.inf, "ignored": 0, "used": 0}
-        self.pub_stats = node.create_publisher(DiagnosticArray, "bridge/link_stats", 10)
-        self.vehicle = node.create_client(VehicleCommand, "vehicle/command")
-        self.upload = node.create_client(UploadMission, "mission/upload")
-        self.control = node.create_client(MissionControl, "mission/control")
+        side = rclpy.create_node(topics.side_node_name(node.get_name()))
+        self.state = LatestSampler(side, VehicleState, topics.NAV_STATE.name, topics.NAV_STATE.qos)
+        for msg_type, topic, callback in (
+                (VehicleStatus, topics.STATUS, self._on_status), (BatteryState, topics.BATTERY, self._on_battery),
+                (NavSatFix, topics.P_GPS, self._on_gps), (MissionState, topics.MISSION_STATE, self._on_mission),
+                (MissionPlan, topics.MISSION_PLAN, self._on_plan), (DiagnosticStatus, topics.HEALTH_SUMMARY, self._on_health),
+                (CaptureEvent, topics.CAPTURES, self._on_capture), (ExecutorStats, topics.EXECUTOR_STATS, self._on_stats)):
+            node.create_subscription(msg_type, topic.name, callback, topic.qos)
+        self.pub_heartbeat = node.create_publisher(Header, topics.GCS_HEARTBEAT.name, topics.GCS_HEARTBEAT.qos)
+        self.pub_pilot = node.create_publisher(GuidanceSetpoint, topics.SETPOINT.name, topics.SETPOINT.qos)
+        self.pub_stats = node.create_publisher(DiagnosticArray, topics.LINK_STATS.name, topics.LINK_STATS.qos)
+        self.vehicle = node.create_client(VehicleCommand, topics.VEHICLE_COMMAND.name)
+        self.upload = node.create_client(UploadMission, topics.MISSION_UPLOAD.name)
+        self.control = node.create_client(MissionControl, topics.MISSION_CONTROL.name)
         self.param_clients: dict[str, object] = {}
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(node)
-        self.types = {"VehicleCommand": VehicleCommand, "UploadMission": UploadMission, "MissionControl": MissionControl,
-                      "Header": Header, "DiagnosticArray": DiagnosticArray, "DiagnosticStatus": DiagnosticStatus}
-        self.last = {"reached": -1, "failsafe": "NONE", "dead": "", "captures": 0, "plan_id": -1}
+        self.Header, self.DiagnosticArray, self.DiagnosticStatus = Header, DiagnosticArray, DiagnosticStatus
+        self.VehicleCommand, self.UploadMission, self.MissionControl = VehicleCommand, UploadMission, MissionControl
+        self.last = Reported()
         self.fence: tuple[tuple[float, float], ...] = ()
         self.plan_msg = None
         self.pending_params: list[tuple[ParamSpec, float]] = []
@@ -142,9 +162,9 @@ class RosSide:
         s = self.snapshot
         s.mission_current, s.mission_total = msg.current_item, msg.total_items
         s.mission_state = MISSION_STATE.get(msg.state, 0)
-        if msg.last_reached_item >= 0 and msg.last_reached_item != self.last["reached"] and self.router:
+        if msg.last_reached_item >= 0 and msg.last_reached_item != self.last.reached and self.router:
             self.router.send(M.MAVLink_mission_item_reached_message(msg.last_reached_item))
-        self.last["reached"] = msg.last_reached_item
+        self.last.reached = msg.last_reached_item
 
     def _on_plan(self, msg) -> None:
         """The active plan, as the MISSION (and FENCE) items a download returns."""
@@ -159,7 +179,7 @@ class RosSide:
             items = []
             for item in plan.items:
                 command, frame, params = item_to_mavlink(item, home)
-                items.append(WireItem(command, {3: M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}.get(frame, frame), tuple(params)))
+                items.append(WireItem(command, WIRE_FRAME.get(frame, frame), tuple(params)))
         except PlanError as exc:
             self.node.get_logger().warning(f"active plan not downloadable yet: {exc}")
             return
@@ -170,15 +190,16 @@ class RosSide:
 
     def _on_health(self, msg) -> None:
         values = {kv.key: kv.value for kv in msg.values}
-        failsafe, dead = values.get("failsafe", "NONE"), values.get("dead_nodes", "")
-        self.snapshot.failsafe = FAILSAFE_NAMES.index(failsafe) if failsafe in FAILSAFE_NAMES else 0
-        if failsafe != self.last["failsafe"] and failsafe != "WARN":
-            severity = M.MAV_SEVERITY_CRITICAL if failsafe not in ("NONE", "WARN") else M.MAV_SEVERITY_NOTICE
-            self.statustext(severity, f"failsafe {failsafe}: {values.get('reason', '')}" if failsafe != "NONE"
-                            else "failsafe cleared")
-        if dead != self.last["dead"] and dead:
+        failsafe, dead = values.get("failsafe", FailsafeAction.NONE.name), values.get("dead_nodes", "")
+        action = failsafe_action(failsafe)
+        self.snapshot.failsafe = action
+        if failsafe != self.last.failsafe and failsafe != FailsafeAction.WARN.name:
+            cleared = failsafe == FailsafeAction.NONE.name
+            self.statustext(M.MAV_SEVERITY_NOTICE if cleared else M.MAV_SEVERITY_CRITICAL,
+                            "failsafe cleared" if cleared else f"failsafe {failsafe}: {values.get('reason', '')}")
+        if dead != self.last.dead and dead:
             self.statustext(M.MAV_SEVERITY_ERROR, f"node lost: {dead}")
-        self.last["failsafe"], self.last["dead"] = failsafe, dead
+        self.last.failsafe, self.last.dead = failsafe, dead
 
     def _on_capture(self, msg) -> None:
         if self.router:
@@ -196,7 +217,7 @@ class RosSide:
             self.statustext(M.MAV_SEVERITY_WARNING, reason)
 
     def gcs_heartbeat(self) -> None:
-        h = self.types["Header"]()
+        h = self.Header()
         h.stamp = self.node.get_clock().now().to_msg()
         h.frame_id = "gcs"
         self.pub_heartbeat.publish(h)
@@ -204,9 +225,9 @@ class RosSide:
     def publish_link_stats(self, router, schedulers, link, now: float) -> None:
         from diagnostic_msgs.msg import KeyValue
 
-        array = self.types["DiagnosticArray"]()
+        array = self.DiagnosticArray()
         array.header.stamp = self.node.get_clock().now().to_msg()
-        status_t = self.types["DiagnosticStatus"]
+        status_t = self.DiagnosticStatus
         array.status.append(status_t(level=status_t.OK if link.up else status_t.WARN, name="bridge/link",
                                      hardware_id="gcs", message="GCS link up" if link.up else "no GCS heartbeat",
                                      values=[KeyValue(key="losses", value=str(link.losses)),
@@ -233,9 +254,9 @@ class RosSide:
     def vehicle_command(self, fields: dict, ack) -> None:
         from c4d_interfaces.msg import GeoPoint
 
-        req = self.types["VehicleCommand"].Request(command=fields["command"], altitude=float(fields.get("altitude", 0.0)),
-                                                   mode=int(fields.get("mode", 0)), force=bool(fields.get("force", False)),
-                                                   yaw=float(fields.get("yaw", math.nan)))
+        req = self.VehicleCommand.Request(command=fields["command"], altitude=float(fields.get("altitude", 0.0)),
+                                           mode=int(fields.get("mode", 0)), force=bool(fields.get("force", False)),
+                                           yaw=float(fields.get("yaw", math.nan)))
         if "latitude" in fields:
             alt = fields["altitude"] if math.isfinite(fields["altitude"]) else self.snapshot.position[2]
             req.target = GeoPoint(latitude=fields["latitude"], longitude=fields["longitude"], altitude=float(alt))
@@ -243,12 +264,11 @@ class RosSide:
                    if r is None else ack(r.result, r.message))
 
     def mission_control(self, fields: dict, ack) -> None:
-        t = self.types["MissionControl"].Request
-        action = {"start": t.ACTION_START, "resume": t.ACTION_RESUME, "clear": t.ACTION_CLEAR,
-                  "set_current": t.ACTION_SET_CURRENT}[fields["action"]]
+        action = MissionAction[fields["action"].upper()]  # "start" | "resume" | "clear" | "set_current"
         item = max(0, int(fields.get("item", 0)))
-        self._call(self.control, t(action=action, item=item), lambda r: ack(M.MAV_RESULT_TEMPORARILY_REJECTED,
-                   "mission node not reachable") if r is None else ack(r.result, r.message))
+        self._call(self.control, self.MissionControl.Request(action=action, item=item),
+                   lambda r: ack(M.MAV_RESULT_TEMPORARILY_REJECTED, "mission node not reachable") if r is None
+                   else ack(r.result, r.message))
 
     def upload_mission(self, mission_type: int, items: list[WireItem]) -> None:
         """Complete upload from a GCS: FENCE items become the polygon of the next plans; MISSION
@@ -264,15 +284,14 @@ class RosSide:
             if self.snapshot.mission_state == M.MISSION_STATE_ACTIVE:
                 return finish(M.MAV_MISSION_DENIED)
             return self.mission_control({"action": "clear"}, lambda r, reason="": finish(
-                M.MAV_MISSION_ACCEPTED if r == 0 else M.MAV_MISSION_DENIED))
+                M.MAV_MISSION_ACCEPTED if r == CommandResult.ACCEPTED else M.MAV_MISSION_DENIED))
         home_alt = self.snapshot.home[2] if self.snapshot.home else None
         try:
             plan_items = tuple(item_from_mavlink(i.command, i.frame, i.params, home_alt, where=f"item {k}")
                                for k, i in enumerate(items))
-        except PlanError as exc:
+        except MavlinkItemError as exc:
             self.statustext(M.MAV_SEVERITY_WARNING, str(exc))
-            return finish(M.MAV_MISSION_UNSUPPORTED_FRAME if "frame" in str(exc) else
-                          M.MAV_MISSION_UNSUPPORTED if "unsupported" in str(exc) else M.MAV_MISSION_INVALID)
+            return finish(ITEM_RESULT[exc.problem])
         p = self.params
         plan = Plan(plan_items, Geofence(self.fence, p.get("GF_MAX_VER_DIST"), p.get("GF_MAX_HOR_DIST")), "mavlink",
                     p.get("MPC_XY_CRUISE"), p.get("RTL_RETURN_ALT"))
@@ -287,7 +306,7 @@ class RosSide:
                 return finish(M.MAV_MISSION_INVALID)
             finish(M.MAV_MISSION_ACCEPTED)
 
-        self._call(self.upload, self.types["UploadMission"].Request(plan=plan_to_msg(plan)), verdict)
+        self._call(self.upload, self.UploadMission.Request(plan=plan_to_msg(plan)), verdict)
 
     def clear_mission(self, mission_type: int) -> int:
         if mission_type in (MISSION, M.MAV_MISSION_TYPE_ALL):
@@ -324,25 +343,11 @@ class RosSide:
 
         self._call(self._param_client(spec.node), request, done)
 
-    def manual_control(self, msg, now: float, hover: float) -> None:
-        """Pilot sticks → guidance/setpoint at the ATTITUDE or RATE level, only in those modes
-        (the core ignores other levels there, and other modes ignore pilot setpoints)."""
+    def publish_pilot(self, sp: PilotSetpoint) -> None:
+        """A pilot setpoint (manual.PilotInput) as guidance/setpoint at the ATTITUDE or RATE level."""
         from c4d_interfaces.msg import GuidanceSetpoint
 
-        from .manual import pilot_setpoint
-
-        snap, st = self.snapshot, self.pilot_state
-        mode = {1: "rate", 2: "attitude"}.get(snap.flight_mode)
-        if mode is None or snap.orientation is None:
-            st["ignored"] += 1
-            return
-        if now - st["t"] > 0.5 or not math.isfinite(st["yaw"]):  # (re)entering manual: hold the current heading
-            st["yaw"] = quat.yaw_of(snap.orientation)
-        dt = min(0.1, max(0.0, now - st["t"]))
-        st["t"] = now
-        sp = pilot_setpoint(msg.x, msg.y, msg.z, msg.r, mode, st["yaw"], hover)
-        st["yaw"] = math.remainder(st["yaw"] + sp.yaw_rate * dt, math.tau)
-        out = GuidanceSetpoint(control_level=GuidanceSetpoint.LEVEL_ATTITUDE if mode == "attitude" else
+        out = GuidanceSetpoint(control_level=GuidanceSetpoint.LEVEL_ATTITUDE if sp.level == "attitude" else
                                GuidanceSetpoint.LEVEL_RATE, yaw=math.nan, yaw_rate=float(sp.yaw_rate), thrust=float(sp.thrust),
                                max_horizontal_speed=math.nan, max_vertical_speed=math.nan)
         out.header.stamp = self.node.get_clock().now().to_msg()
@@ -353,4 +358,3 @@ class RosSide:
         out.orientation.w, out.orientation.x, out.orientation.y, out.orientation.z = sp.orientation
         out.body_rate.x, out.body_rate.y, out.body_rate.z = sp.body_rate
         self.pub_pilot.publish(out)
-        st["used"] += 1

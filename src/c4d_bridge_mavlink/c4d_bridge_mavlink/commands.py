@@ -16,32 +16,21 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .frames import (
-    AUTO_LAND,
-    AUTO_LOITER,
-    AUTO_MISSION,
-    AUTO_RTL,
-    AUTO_TAKEOFF,
-    MODE_ATTITUDE,
-    MODE_POSITION,
-    MODE_RATE,
-    PX4_ACRO,
-    PX4_AUTO,
-    PX4_POSCTL,
-    PX4_STABILIZED,
-)
+from c4d_common.vehicle import Mode
+from c4d_common.vehicle import VehicleCommandId as Cmd
+
+from .frames import AUTO_LAND, AUTO_LOITER, AUTO_MISSION, AUTO_RTL, AUTO_TAKEOFF, PX4_ACRO, PX4_AUTO, PX4_POSCTL, PX4_STABILIZED
 from .signing import mavlink
 
 M = mavlink
 FORCE_KEY = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: force (bypass checks)
-CMD_ARM, CMD_DISARM, CMD_TAKEOFF, CMD_LAND, CMD_RTL, CMD_HOLD, CMD_SET_MODE, CMD_GOTO = 1, 2, 3, 4, 5, 6, 7, 8
 
 
 @dataclass(frozen=True)
 class Context:
     home: tuple[float, float, float] | None  # lat, lon, alt AMSL
     takeoff_altitude: float  # MIS_TAKEOFF_ALT
-    mission_paused: bool = False
+    mission_paused: bool = False  # the plan is active, possibly held (AUTO.LOITER): AUTO.MISSION resumes it
 
 
 @dataclass
@@ -78,7 +67,7 @@ def translate(msg, ctx: Context) -> Action:
     if c == M.MAV_CMD_COMPONENT_ARM_DISARM:
         if p[0] not in (0.0, 1.0):
             return _deny("param1 must be 1 (arm) or 0 (disarm)")
-        return Action("vehicle", fields={"command": CMD_ARM if p[0] == 1.0 else CMD_DISARM, "force": p[1] == FORCE_KEY})
+        return Action("vehicle", fields={"command": Cmd.ARM if p[0] == 1.0 else Cmd.DISARM, "force": p[1] == FORCE_KEY})
     if c == M.MAV_CMD_NAV_TAKEOFF:
         altitude = ctx.takeoff_altitude
         if _finite(p[6]):
@@ -90,13 +79,13 @@ def translate(msg, ctx: Context) -> Action:
                 return Action("ack", M.MAV_RESULT_TEMPORARILY_REJECTED, "no home position yet")
         if not 0.5 <= altitude <= 120.0:
             return _deny(f"take-off altitude {altitude:.1f} m above home outside [0.5, 120]")
-        return Action("vehicle", fields={"command": CMD_TAKEOFF, "altitude": float(altitude)})
+        return Action("vehicle", fields={"command": Cmd.TAKEOFF, "altitude": float(altitude)})
     if c == M.MAV_CMD_NAV_LAND:
-        return Action("vehicle", fields={"command": CMD_LAND})
+        return Action("vehicle", fields={"command": Cmd.LAND})
     if c == M.MAV_CMD_NAV_RETURN_TO_LAUNCH:
-        return Action("vehicle", fields={"command": CMD_RTL})
+        return Action("vehicle", fields={"command": Cmd.RETURN_TO_LAUNCH})
     if c == M.MAV_CMD_NAV_LOITER_UNLIM and not _finite(p[4]):
-        return Action("vehicle", fields={"command": CMD_HOLD})
+        return Action("vehicle", fields={"command": Cmd.HOLD})
     if c == M.MAV_CMD_MISSION_START:
         first = int(p[0]) if _finite(p[0]) and p[0] >= 0 else 0
         return Action("mission", fields={"action": "start", "item": first})
@@ -124,16 +113,16 @@ def _set_mode(p: list[float], ctx: Context) -> Action:
     if main == PX4_AUTO:
         if sub == AUTO_MISSION:
             return Action("mission", fields={"action": "resume" if ctx.mission_paused else "start", "item": -1})
-        vehicle = {AUTO_LOITER: CMD_HOLD, AUTO_RTL: CMD_RTL, AUTO_LAND: CMD_LAND}.get(sub)
+        vehicle = {AUTO_LOITER: Cmd.HOLD, AUTO_RTL: Cmd.RETURN_TO_LAUNCH, AUTO_LAND: Cmd.LAND}.get(sub)
         if sub == AUTO_TAKEOFF:
-            return Action("vehicle", fields={"command": CMD_TAKEOFF, "altitude": float(ctx.takeoff_altitude)})
+            return Action("vehicle", fields={"command": Cmd.TAKEOFF, "altitude": float(ctx.takeoff_altitude)})
         if vehicle is not None:
             return Action("vehicle", fields={"command": vehicle})
         return _deny(f"AUTO sub mode {sub} not supported")
-    mode = {PX4_POSCTL: MODE_POSITION, PX4_STABILIZED: MODE_ATTITUDE, PX4_ACRO: MODE_RATE}.get(main)
+    mode = {PX4_POSCTL: Mode.POSITION, PX4_STABILIZED: Mode.ATTITUDE, PX4_ACRO: Mode.RATE}.get(main)
     if mode is None:
         return _deny(f"main mode {main} not supported")
-    return Action("vehicle", fields={"command": CMD_SET_MODE, "mode": mode})
+    return Action("vehicle", fields={"command": Cmd.SET_MODE, "mode": mode})
 
 
 def _reposition(p: list[float], relative: bool, ctx: Context) -> Action:
@@ -147,5 +136,5 @@ def _reposition(p: list[float], relative: bool, ctx: Context) -> Action:
     else:
         alt_rel = alt if relative else alt - ctx.home[2]
     yaw = math.radians(90.0 - p[3]) if _finite(p[3]) else math.nan
-    return Action("vehicle", fields={"command": CMD_GOTO, "latitude": lat, "longitude": lon, "altitude": alt_rel,
+    return Action("vehicle", fields={"command": Cmd.GOTO, "latitude": lat, "longitude": lon, "altitude": alt_rel,
                                      "yaw": yaw})

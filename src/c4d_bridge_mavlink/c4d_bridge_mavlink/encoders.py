@@ -13,8 +13,9 @@ import math
 from dataclasses import dataclass, field
 
 from c4d_common import quat
+from c4d_common.vehicle import FailsafeAction, Landed, Mode, Nav
 
-from .frames import NAV_GOTO, NAV_MISSION, attitude_to_ned, compass_heading_deg, enu_to_ned, flu_to_frd, px4_custom_mode
+from .frames import attitude_to_ned, compass_heading_deg, enu_to_ned, flu_to_frd, px4_custom_mode
 from .signing import mavlink
 
 M = mavlink
@@ -29,8 +30,9 @@ SENSORS = (M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL | 
            | M.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | M.MAV_SYS_STATUS_SENSOR_BATTERY | M.MAV_SYS_STATUS_AHRS
            | M.MAV_SYS_STATUS_PREARM_CHECK)
 VERSION = (0 << 24) | (1 << 16) | (0 << 8) | 255  # 0.1.0 release (major, minor, patch, FIRMWARE_VERSION_TYPE)
-LANDED = {0: M.MAV_LANDED_STATE_UNDEFINED, 1: M.MAV_LANDED_STATE_ON_GROUND, 2: M.MAV_LANDED_STATE_IN_AIR,
-          3: M.MAV_LANDED_STATE_TAKEOFF, 4: M.MAV_LANDED_STATE_LANDING}
+LANDED = {Landed.UNDEFINED: M.MAV_LANDED_STATE_UNDEFINED, Landed.ON_GROUND: M.MAV_LANDED_STATE_ON_GROUND,
+          Landed.IN_AIR: M.MAV_LANDED_STATE_IN_AIR, Landed.TAKEOFF: M.MAV_LANDED_STATE_TAKEOFF,
+          Landed.LANDING: M.MAV_LANDED_STATE_LANDING}
 
 
 @dataclass
@@ -39,10 +41,10 @@ class Snapshot:
 
     boot_s: float = 0.0  # monotonic time of the bridge start (time_boot_ms origin)
     armed: bool = False
-    flight_mode: int = 4
-    nav_state: int = 0
-    landed_state: int = 0
-    failsafe: int = 0
+    flight_mode: int = Mode.AUTO
+    nav_state: int = Nav.NONE
+    landed_state: int = Landed.UNDEFINED
+    failsafe: int = FailsafeAction.NONE
     position: tuple[float, float, float] = (NAN, NAN, NAN)  # ENU [m] from home
     velocity: tuple[float, float, float] = (NAN, NAN, NAN)  # ENU [m/s]
     orientation: quat.Quat | None = None  # body FLU → ENU
@@ -76,16 +78,16 @@ def _i(value: float, scale: float, unknown: int) -> int:
 
 def heartbeat(s: Snapshot) -> M.MAVLink_heartbeat_message:
     base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED
-    if s.flight_mode == 4:
+    if s.flight_mode == Mode.AUTO:
         base |= M.MAV_MODE_FLAG_AUTO_ENABLED | M.MAV_MODE_FLAG_GUIDED_ENABLED
     if s.armed:
         base |= M.MAV_MODE_FLAG_SAFETY_ARMED
     status = M.MAV_STATE_STANDBY
     if s.armed:
-        status = M.MAV_STATE_CRITICAL if s.failsafe >= 2 else M.MAV_STATE_ACTIVE
+        status = M.MAV_STATE_CRITICAL if s.failsafe >= FailsafeAction.HOLD else M.MAV_STATE_ACTIVE
     nav = s.nav_state
-    if nav == NAV_GOTO and s.mission_state == M.MISSION_STATE_ACTIVE:
-        nav = NAV_MISSION  # the mission node flies plans through the core's go-to interface
+    if nav == Nav.GOTO and s.mission_state == M.MISSION_STATE_ACTIVE:
+        nav = Nav.MISSION  # the mission node flies plans through the core's go-to interface
     return M.MAVLink_heartbeat_message(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_PX4, base,
                                        px4_custom_mode(s.flight_mode, nav), status, 3)
 

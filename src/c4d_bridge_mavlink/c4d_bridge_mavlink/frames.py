@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 
 from c4d_common import quat
+from c4d_common.vehicle import Mode, Nav
 
 Vec = tuple[float, float, float]
 _S = math.sqrt(0.5)
@@ -25,10 +26,6 @@ Q_FRD_TO_FLU: quat.Quat = (0.0, 1.0, 0.0, 0.0)  # 180° about x: y → −y, z �
 # PX4 main modes and AUTO sub modes (px4_custom_mode.h)
 PX4_MANUAL, PX4_ALTCTL, PX4_POSCTL, PX4_AUTO, PX4_ACRO, PX4_OFFBOARD, PX4_STABILIZED = 1, 2, 3, 4, 5, 6, 7
 AUTO_READY, AUTO_TAKEOFF, AUTO_LOITER, AUTO_MISSION, AUTO_RTL, AUTO_LAND = 1, 2, 3, 4, 5, 6
-
-# c4d VehicleStatus constants (mirrored to stay ROS-free)
-MODE_RATE, MODE_ATTITUDE, MODE_POSITION, MODE_AUTO, MODE_KILL = 1, 2, 3, 4, 5
-NAV_NONE, NAV_TAKEOFF, NAV_MISSION, NAV_HOLD, NAV_GOTO, NAV_RTL, NAV_LAND = 0, 1, 2, 3, 4, 5, 6
 
 
 def enu_to_ned(v: Vec) -> Vec:
@@ -51,12 +48,12 @@ def compass_heading_deg(q_flu_enu: quat.Quat) -> float:
 
 
 def px4_custom_mode(flight_mode: int, nav_state: int) -> int:
-    """HEARTBEAT.custom_mode (PX4 layout) for a c4d mode / navigation state."""
-    if flight_mode == MODE_AUTO:
-        sub = {NAV_TAKEOFF: AUTO_TAKEOFF, NAV_MISSION: AUTO_MISSION, NAV_HOLD: AUTO_LOITER, NAV_GOTO: AUTO_LOITER,
-               NAV_RTL: AUTO_RTL, NAV_LAND: AUTO_LAND}.get(nav_state, AUTO_READY)
+    """HEARTBEAT.custom_mode (PX4 layout) for a c4d mode / navigation state (c4d_common.vehicle Mode / Nav)."""
+    if flight_mode == Mode.AUTO:
+        sub = {Nav.TAKEOFF: AUTO_TAKEOFF, Nav.MISSION: AUTO_MISSION, Nav.HOLD: AUTO_LOITER, Nav.GOTO: AUTO_LOITER,
+               Nav.RTL: AUTO_RTL, Nav.LAND: AUTO_LAND}.get(nav_state, AUTO_READY)
         return (PX4_AUTO << 16) | (sub << 24)
-    main = {MODE_RATE: PX4_ACRO, MODE_ATTITUDE: PX4_STABILIZED, MODE_POSITION: PX4_POSCTL, MODE_KILL: PX4_MANUAL}
+    main = {Mode.RATE: PX4_ACRO, Mode.ATTITUDE: PX4_STABILIZED, Mode.POSITION: PX4_POSCTL, Mode.KILL: PX4_MANUAL}
     return main.get(flight_mode, PX4_POSCTL) << 16
 
 

@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass
 
 from c4d_common import quat
+from c4d_common.vehicle import Mode
 
 MAX_TILT = math.radians(30.0)  # full roll/pitch stick in ATTITUDE mode
 MAX_RATE = math.radians(180.0)  # full stick in RATE mode (roll, pitch)
@@ -52,3 +53,36 @@ def pilot_setpoint(x: float, y: float, z: float, r: float, mode: str, yaw: float
         return PilotSetpoint("rate", quat.IDENTITY, (roll * MAX_RATE, pitch * MAX_RATE, yaw_rate), yaw_rate, thrust)
     return PilotSetpoint("attitude", quat.from_euler(roll * MAX_TILT, pitch * MAX_TILT, yaw), (0.0, 0.0, 0.0), yaw_rate,
                          thrust)
+
+
+class PilotInput:
+    """The MANUAL_CONTROL stream → pilot setpoints, only in the core's RATE / ATTITUDE modes (the
+    core ignores other levels there, and other modes ignore pilot setpoints).
+
+    Why a class: the attitude-mode heading target is integrated from the yaw stick between frames
+    and re-taken from the vehicle whenever the pilot (re)enters manual control (> 0.5 s gap)."""
+
+    LEVELS = {Mode.RATE: "rate", Mode.ATTITUDE: "attitude"}
+
+    def __init__(self, hover: float) -> None:
+        self.hover = hover  # the airframe's hover command: the thrust stick's centre
+        self.yaw = math.nan  # ENU rad, attitude-mode heading target
+        self.t = -math.inf  # time of the last used frame [s]
+        self.ignored = 0
+        self.used = 0
+
+    def setpoint(self, x: float, y: float, z: float, r: float, flight_mode: int, orientation: quat.Quat | None,
+                 now: float) -> PilotSetpoint | None:
+        """The setpoint for one MANUAL_CONTROL frame, or None when the vehicle is not in a pilot mode."""
+        mode = self.LEVELS.get(flight_mode)
+        if mode is None or orientation is None:
+            self.ignored += 1
+            return None
+        if now - self.t > 0.5 or not math.isfinite(self.yaw):  # (re)entering manual: hold the current heading
+            self.yaw = quat.yaw_of(orientation)
+        dt = min(0.1, max(0.0, now - self.t))
+        self.t = now
+        sp = pilot_setpoint(x, y, z, r, mode, self.yaw, self.hover)
+        self.yaw = math.remainder(self.yaw + sp.yaw_rate * dt, math.tau)
+        self.used += 1
+        return sp

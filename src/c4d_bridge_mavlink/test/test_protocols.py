@@ -11,12 +11,13 @@ import time
 import pytest
 
 from c4d_bridge_mavlink import frames
-from c4d_bridge_mavlink.commands import CMD_ARM, CMD_GOTO, CMD_RTL, CMD_TAKEOFF, Context, translate
+from c4d_bridge_mavlink.commands import Context, translate
 from c4d_bridge_mavlink.mission_protocol import MISSION, MissionServer, WireItem
 from c4d_bridge_mavlink.params import ParamServer
 from c4d_bridge_mavlink.signing import mavlink as M
 from c4d_bridge_mavlink.transport import Router
 from c4d_common import quat
+from c4d_common.vehicle import Mode, Nav, VehicleCommandId
 
 GCS = M.MAVLink(None, 255, 190)
 
@@ -39,10 +40,10 @@ def test_enu_flu_to_ned_frd():
 
 
 def test_px4_custom_modes():
-    assert frames.mode_name(frames.px4_custom_mode(frames.MODE_AUTO, frames.NAV_HOLD)) == "AUTO.LOITER"
-    assert frames.mode_name(frames.px4_custom_mode(frames.MODE_AUTO, frames.NAV_LAND)) == "AUTO.LAND"
-    assert frames.mode_name(frames.px4_custom_mode(frames.MODE_POSITION, 0)) == "POSCTL"
-    assert frames.decode_px4_mode(frames.px4_custom_mode(frames.MODE_AUTO, frames.NAV_RTL)) == (4, 5)
+    assert frames.mode_name(frames.px4_custom_mode(Mode.AUTO, Nav.HOLD)) == "AUTO.LOITER"
+    assert frames.mode_name(frames.px4_custom_mode(Mode.AUTO, Nav.LAND)) == "AUTO.LAND"
+    assert frames.mode_name(frames.px4_custom_mode(Mode.POSITION, 0)) == "POSCTL"
+    assert frames.decode_px4_mode(frames.px4_custom_mode(Mode.AUTO, Nav.RTL)) == (4, 5)
 
 
 # ---------------------------------------------------------------- mission protocol
@@ -146,21 +147,21 @@ def cmd_long(command, *p):
 def test_command_translation():
     ctx = Context(home=(43.5, 1.48, 146.0), takeoff_altitude=5.0)
     arm = translate(cmd_long(M.MAV_CMD_COMPONENT_ARM_DISARM, 1, 21196), ctx)
-    assert arm.kind == "vehicle" and arm.fields == {"command": CMD_ARM, "force": True}
+    assert arm.kind == "vehicle" and arm.fields == {"command": VehicleCommandId.ARM, "force": True}
     assert translate(cmd_long(M.MAV_CMD_COMPONENT_ARM_DISARM, 3), ctx).result == M.MAV_RESULT_DENIED
     takeoff = translate(cmd_long(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 156.0), ctx)
-    assert takeoff.fields == {"command": CMD_TAKEOFF, "altitude": pytest.approx(10.0)}  # AMSL 156 − home 146
+    assert takeoff.fields == {"command": VehicleCommandId.TAKEOFF, "altitude": pytest.approx(10.0)}  # AMSL 156 − home 146
     assert translate(cmd_long(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, math.nan), ctx).fields["altitude"] == 5.0
     assert translate(cmd_long(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 9999.0), ctx).result == M.MAV_RESULT_DENIED
     rtl = translate(cmd_long(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 5), ctx)
-    assert rtl.fields == {"command": CMD_RTL}
+    assert rtl.fields == {"command": VehicleCommandId.RETURN_TO_LAUNCH}
     assert translate(cmd_long(M.MAV_CMD_DO_SET_MODE, 0, 4, 5), ctx).result == M.MAV_RESULT_DENIED
     mission = translate(cmd_long(M.MAV_CMD_DO_SET_MODE, 1, 4, 4), Context(ctx.home, 5.0, mission_paused=True))
     assert mission.kind == "mission" and mission.fields["action"] == "resume"
     repo = translate(from_gcs(M.MAVLink_command_int_message(1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
                                                             M.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0, 90.0,
                                                             435001000, 14801000, 7.0)), ctx)
-    assert repo.fields["command"] == CMD_GOTO and repo.fields["latitude"] == pytest.approx(43.5001)
+    assert repo.fields["command"] == VehicleCommandId.GOTO and repo.fields["latitude"] == pytest.approx(43.5001)
     assert repo.fields["altitude"] == 7.0 and repo.fields["yaw"] == pytest.approx(0.0)  # compass 90° = ENU 0
     assert translate(cmd_long(M.MAV_CMD_DO_REPOSITION, -1, 0, 0, 0, math.nan, 1.0, 10.0), ctx).result == M.MAV_RESULT_DENIED
     assert translate(cmd_long(31999), ctx).result == M.MAV_RESULT_UNSUPPORTED
