@@ -76,7 +76,7 @@ def load_mission(path: Path, config: SystemConfig):
     sim_file = sim.parameters.get("config") or ""
     try:
         origin = load_sim_config(Path(str(sim_file).replace("${config_dir}", str(config.path.parent)))
-                                 if sim_file else default_sim_config())["origin"]
+                                 if sim_file else default_sim_config()).origin
     except SimConfigError as exc:
         raise ConfigError(f"node 'sim': {exc}") from None
     result = validate(plan, origin)

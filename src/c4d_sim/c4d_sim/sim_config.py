@@ -6,11 +6,12 @@ Kept apart from the node so that `c4d fly` can validate a sim config before any 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 
-from c4d_common.airframe import AirframeError, default_airframe_path, load_airframe
+from c4d_common.airframe import Airframe, AirframeError, default_airframe_path, load_airframe
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.share import share_file
 
@@ -18,7 +19,23 @@ from .sensors import SensorConfig, SensorConfigError
 
 
 class SimConfigError(ValueError):
-    pass
+    """The sim configuration is unusable; the text is one line naming the field."""
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """The simulated vehicle and its world, as read from the sim YAML."""
+
+    airframe: Airframe
+    sensors: SensorConfig
+    physics_rate_hz: int
+    origin: GeoOrigin  # home: the ENU frame of the plant and the ground truth starts here
+    yaw: float  # [rad] ENU heading at the start
+    truth_rate_hz: float  # sim/ground_truth
+    seed: int
+    wind_mean: tuple[float, float, float]  # [m/s] ENU
+    gust: float  # [m/s] amplitude of the (1 - cos) gust from the east
+    gust_period: float  # [s]
 
 
 def default_sim_config() -> Path:
@@ -32,7 +49,7 @@ def _number(doc: dict, key: str, where: str, positive: bool = False) -> float:
     return float(value)
 
 
-def load_sim_config(path: Path) -> dict:
+def load_sim_config(path: Path) -> SimConfig:
     try:
         doc = yaml.safe_load(path.read_text())
     except OSError as exc:
@@ -64,12 +81,12 @@ def load_sim_config(path: Path) -> dict:
         airframe = load_airframe(frame_path)
     except AirframeError as exc:
         raise SimConfigError(str(exc)) from None
-    return {
-        "airframe": airframe, "sensors": sensors, "rate": int(rate),
-        "origin": GeoOrigin(float(start["latitude"]), float(start["longitude"]), float(start["altitude"])),
-        "yaw": math.radians(float(start.get("yaw_deg", 0.0))),
-        "truth_rate": _number(doc, "ground_truth_rate_hz", "", positive=True) if "ground_truth_rate_hz" in doc else 100.0,
-        "seed": int(doc.get("seed", 1)),
-        "wind_mean": tuple(float(x) for x in mean),
-        "gust": float(wind.get("gust_m_s", 0.0)), "gust_period": float(wind.get("gust_period_s", 6.0)),
-    }
+    return SimConfig(
+        airframe=airframe, sensors=sensors, physics_rate_hz=int(rate),
+        origin=GeoOrigin(float(start["latitude"]), float(start["longitude"]), float(start["altitude"])),
+        yaw=math.radians(float(start.get("yaw_deg", 0.0))),
+        truth_rate_hz=_number(doc, "ground_truth_rate_hz", "", positive=True) if "ground_truth_rate_hz" in doc else 100.0,
+        seed=int(doc.get("seed", 1)),
+        wind_mean=(float(mean[0]), float(mean[1]), float(mean[2])),
+        gust=float(wind.get("gust_m_s", 0.0)), gust_period=float(wind.get("gust_period_s", 6.0)),
+    )

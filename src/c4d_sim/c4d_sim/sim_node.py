@@ -14,183 +14,171 @@ Faults are ROS parameters, changeable at run time (parameter service):
   fault.motor_health (one factor per motor, 1 = nominal, 0 = failed);
   fault.battery_drain_factor; fault.wind_gust_m_s (extra gust amplitude).
 Parameters: config (sim YAML). Bad configuration: one line, exit 2.
+The behaviour is `simulation.Simulation` (ROS-free); this node maps it to topics and parameters.
 """
 
 from __future__ import annotations
 
-import math
+import signal
 import sys
-import time
-from collections import deque
 from pathlib import Path
+from typing import Any
 
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import SetParametersResult
+from sensor_msgs.msg import BatteryState, FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
+
+from c4d_interfaces.msg import ActuatorCommand
+from c4d_ros import manifest
+from c4d_ros.drain import Drainer
+from c4d_ros.params import ParameterError, Spec, declare, declare_all
+from c4d_ros.stamps import s_to_stamp
 from c4d_sched.executive import CyclicExecutive, MonotonicClock
-from c4d_sched.tickschedule import TaskSpec, build_schedule
+from c4d_sched.tickschedule import build_schedule
 
-from .plant import MultirotorPlant
-from .sensors import RANGE_MIN, Faults, SensorSuite
-from .sim_config import SimConfigError, default_sim_config, load_sim_config
+from .sensors import RANGE_MIN
+from .sim_config import SimConfig, SimConfigError, default_sim_config, load_sim_config
+from .simulation import SENSOR_TASKS, Simulation, task_specs
+
+FAULT = "fault."
+CONFIG = Spec("", "sim YAML file (airframe, start, rates, noise, wind); empty = the bundled config/sim.yaml [path]",
+              read_only=True)
 
 
-def main(argv: list[str] | None = None) -> int:
-    from c4d_ros import node_runtime
+def fault_specs(motors: int) -> dict[str, Spec]:
+    """The run-time fault parameters (settable through the parameter service)."""
+    flags = {"imu_dropout": "the IMU publishes nothing", "imu_freeze": "the IMU repeats its last sample",
+             "gps_loss": "no GNSS fix", "baro_dropout": "the barometer publishes nothing",
+             "baro_freeze": "the barometer repeats its last pressure", "mag_dropout": "the magnetometer publishes nothing",
+             "range_dropout": "the range finder publishes nothing"}
+    specs = {FAULT + name: Spec(False, f"fault: {what} [bool]") for name, what in flags.items()}
+    specs[FAULT + "gps_drift_m_s"] = Spec([0.0, 0.0, 0.0], "fault: drift rate of the reported GNSS position, [e, n, u] [m/s]")
+    specs[FAULT + "motor_health"] = Spec([1.0] * motors, f"fault: thrust factor of each of the {motors} motors, "
+                                                         "1 = nominal, 0 = failed [0..1]")
+    specs[FAULT + "battery_drain_factor"] = Spec(1.0, "fault: multiplies the charge drawn from the battery [factor]",
+                                                 0.0, 1e6)
+    specs[FAULT + "wind_gust_m_s"] = Spec(0.0, "fault: added to the amplitude of the (1 - cos) gust from the east [m/s]",
+                                          -50.0, 50.0)
+    return specs
 
-    rclpy = node_runtime.init(argv)
-    from nav_msgs.msg import Odometry
-    from rcl_interfaces.msg import SetParametersResult
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from sensor_msgs.msg import BatteryState, FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
 
-    from c4d_interfaces.msg import ActuatorCommand
+def read_config(node) -> SimConfig:
+    path = declare(node, "config", CONFIG)
+    return load_sim_config(Path(path) if path else default_sim_config())
 
-    node = rclpy.create_node("sim")
-    try:
-        path = node.declare_parameter("config", "").value
-        cfg = load_sim_config(Path(path) if path else default_sim_config())
-    except SimConfigError as exc:
-        return node_runtime.fail("sim", str(exc), node)
-    af, sc = cfg["airframe"], cfg["sensors"]
-    plant = MultirotorPlant(af, (0.0, 0.0, 0.0), cfg["yaw"])
-    faults = Faults()
-    suite = SensorSuite(sc, cfg["origin"], seed=cfg["seed"], faults=faults)
-    extra_gust = [0.0]
-    fault_params = {
-        "fault.imu_dropout": False, "fault.imu_freeze": False, "fault.gps_loss": False, "fault.baro_dropout": False,
-        "fault.baro_freeze": False, "fault.mag_dropout": False, "fault.range_dropout": False,
-        "fault.gps_drift_m_s": [0.0, 0.0, 0.0], "fault.motor_health": [1.0] * len(af.motors),
-        "fault.battery_drain_factor": 1.0, "fault.wind_gust_m_s": 0.0,
-    }
-    for name, default in fault_params.items():
-        node.declare_parameter(name, default)
 
-    def on_params(params) -> SetParametersResult:
+class SimNode:
+    """The simulator's ROS face: fault parameters, sensors/* and sim/ground_truth publishers fed
+    by executive tasks, control/actuators and the parameter services drained in the executive's
+    input phase (no ROS executor: nothing wakes up per sample)."""
+
+    def __init__(self, node, config: SimConfig) -> None:
+        self.node = node
+        self.sim = Simulation(config, lambda: self.executive.t0_ns)
+        self.plant, self.suite, self.sensors = self.sim.plant, self.sim.suite, config.sensors
+        for name, value in declare_all(node, fault_specs(self.sim.motors)).items():  # start values apply too
+            reason = self.sim.set_fault(name.removeprefix(FAULT), value)
+            if reason:
+                raise ParameterError(f"parameter '{name}': {reason}")
+        node.add_on_set_parameters_callback(self.on_parameters)
+        self.pub_imu = node.create_publisher(Imu, manifest.IMU.name, manifest.IMU.qos)
+        self.pub_gps = node.create_publisher(NavSatFix, manifest.GPS.name, manifest.GPS.qos)
+        self.pub_baro = node.create_publisher(FluidPressure, manifest.BARO.name, manifest.BARO.qos)
+        self.pub_mag = node.create_publisher(MagneticField, manifest.MAG.name, manifest.MAG.qos)
+        self.pub_range = node.create_publisher(Range, manifest.RANGE_DOWN.name, manifest.RANGE_DOWN.qos)
+        self.pub_battery = node.create_publisher(BatteryState, manifest.BATTERY.name, manifest.BATTERY.qos)
+        self.pub_truth = node.create_publisher(Odometry, manifest.GROUND_TRUTH.name, manifest.GROUND_TRUTH.qos)
+        self.drainer = Drainer(node)
+        self.drainer.subscription(ActuatorCommand, manifest.ACTUATORS.name, self.on_actuators, manifest.ACTUATORS.qos)
+        self.drainer.adopt_node_services()  # fault injection via the parameter services, no executor needed
+        tasks = dict(zip(("physics", *SENSOR_TASKS), (self.sim.physics, self.imu, self.gps, self.baro, self.mag,
+                                                      self.range_down, self.battery, self.truth), strict=True))
+        schedule = build_schedule(1_000_000 // config.physics_rate_hz, "gcdplus", task_specs(config))
+        # plain sleeps (no spinning): the plant needs real time, not µs release precision
+        # a sensor keeps sampling whatever the simulator's lateness: samples whose tick was skipped after
+        # a stall are produced (late, once) at the next tick instead of vanishing — otherwise a 10 Hz
+        # battery could fall silent for 0.7 s on a loaded machine and the health monitor would declare
+        # the sim dead (physics simulates every skipped step itself)
+        self.executive = CyclicExecutive(schedule, tasks, MonotonicClock(spin_ns=0), name="sim", input_phase=self.drain,
+                                         report_period_s=3600, manage_gc=True, catch_up=set(SENSOR_TASKS))
+
+    def on_parameters(self, params: list[Any]) -> SetParametersResult:
         for p in params:
-            if p.name not in fault_params:
+            if not p.name.startswith(FAULT):
                 continue
-            value = p.value
-            key = p.name.split(".", 1)[1]
-            if key == "motor_health":
-                if len(value) != len(af.motors) or not all(0.0 <= v <= 1.0 for v in value):
-                    return SetParametersResult(successful=False, reason=f"motor_health needs {len(af.motors)} values in [0, 1]")
-                plant.motor_health = [float(v) for v in value]
-            elif key == "gps_drift_m_s":
-                if len(value) != 3:
-                    return SetParametersResult(successful=False, reason="gps_drift_m_s needs 3 values")
-                faults.gps_drift = tuple(float(v) for v in value)
-            elif key == "wind_gust_m_s":
-                extra_gust[0] = float(value)
-            elif key == "battery_drain_factor":
-                if value < 0:
-                    return SetParametersResult(successful=False, reason="battery_drain_factor must be >= 0")
-                faults.battery_drain_factor = float(value)
-            else:
-                setattr(faults, key, bool(value))
-            node.get_logger().info(f"fault {key} = {value}")
+            reason = self.sim.set_fault(p.name.removeprefix(FAULT), p.value)
+            if reason:
+                return SetParametersResult(successful=False, reason=reason)
+            self.node.get_logger().info(f"fault {p.name.removeprefix(FAULT)} = {p.value}")
         return SetParametersResult(successful=True)
 
-    node.add_on_set_parameters_callback(on_params)
+    def on_actuators(self, msg: ActuatorCommand) -> None:
+        self.sim.command(msg.outputs, msg.armed)
 
-    sensor_qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
-    pub = {
-        "imu": node.create_publisher(Imu, "sensors/imu", sensor_qos),
-        "gps": node.create_publisher(NavSatFix, "sensors/gps", sensor_qos),
-        "baro": node.create_publisher(FluidPressure, "sensors/baro", sensor_qos),
-        "mag": node.create_publisher(MagneticField, "sensors/mag", sensor_qos),
-        "range": node.create_publisher(Range, "sensors/range_down", sensor_qos),
-        "battery": node.create_publisher(BatteryState, "sensors/battery", sensor_qos),
-        "truth": node.create_publisher(Odometry, "sim/ground_truth", sensor_qos),
-    }
-    command = {"outputs": [0.0] * len(af.motors), "armed": False, "t": -math.inf}
+    def drain(self, k: int) -> None:
+        self.drainer.drain()
 
-    def on_actuators(msg: ActuatorCommand) -> None:
-        if len(msg.outputs) == len(af.motors):
-            command["outputs"], command["armed"], command["t"] = list(msg.outputs), msg.armed, time.monotonic()
+    def stamp(self, t: float):
+        return s_to_stamp(self.sim.wall_epoch + t)
 
-    from c4d_ros.drain import Drainer
-
-    drainer = Drainer(node)
-    drainer.subscription(ActuatorCommand, "control/actuators", on_actuators,
-                         QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
-    drainer.adopt_node_services()  # fault injection via the parameter services, no executor needed
-    rate = cfg["rate"]
-    dt = 1.0 / rate
-    t_wall0 = [0.0]  # wall-clock time of simulated t = 0, fixed at the first physics tick
-    gps_queue: deque = deque()
-    from c4d_ros.stamps import s_to_stamp
-
-    def stamp(t: float):
-        return s_to_stamp(t_wall0[0] + t)
-
-    last_tick = [-1]
-
-    def physics(k: int) -> None:
-        if last_tick[0] < 0:  # anchor simulated t = 0 to the wall-clock time of tick 0's deadline
-            t_wall0[0] = time.time() - (time.monotonic_ns() - executive.t0_ns) / 1e9 - plant.state.t
-        fresh = time.monotonic() - command["t"] < 0.2
-        s = plant.state
-        gust = (cfg["gust"] + extra_gust[0]) * 0.5 * (1 - math.cos(2 * math.pi * s.t / cfg["gust_period"]))
-        plant.wind = (cfg["wind_mean"][0] + gust, cfg["wind_mean"][1], cfg["wind_mean"][2])
-        for _ in range(k - last_tick[0]):  # ticks skipped after a stall are simulated too, all of them:
-            plant.step(dt, command["outputs"], command["armed"] and fresh)  # sim time stays wall time
-        last_tick[0] = k
-
-    def imu(k: int) -> None:
-        sample = suite.imu(plant.state, 1.0 / sc.imu_rate_hz)
+    def imu(self, k: int) -> None:
+        sc = self.sensors
+        sample = self.suite.imu(self.plant.state, 1.0 / sc.imu_rate_hz)
         if sample is None:
             return
         m = Imu()
-        m.header.stamp, m.header.frame_id = stamp(sample.stamp), "base_link"
+        m.header.stamp, m.header.frame_id = self.stamp(sample.stamp), "base_link"
         m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = sample.gyro
         m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = sample.accel
         m.orientation_covariance[0] = -1.0  # no orientation estimate in this message
         m.angular_velocity_covariance = [sc.gyro_noise**2, 0.0, 0.0, 0.0, sc.gyro_noise**2, 0.0, 0.0, 0.0, sc.gyro_noise**2]
         m.linear_acceleration_covariance = [sc.accel_noise**2, 0.0, 0.0, 0.0, sc.accel_noise**2, 0.0, 0.0, 0.0,
                                             sc.accel_noise**2]
-        pub["imu"].publish(m)
+        self.pub_imu.publish(m)
 
-    def gps(k: int) -> None:
-        sample = suite.gps(plant.state, 1.0 / sc.gps_rate_hz)
-        if sample is not None:
-            gps_queue.append(sample)
-        while gps_queue and gps_queue[0].stamp + sc.gps_latency_s <= plant.state.t + 1e-9:
-            g = gps_queue.popleft()
+    def gps(self, k: int) -> None:
+        for g in self.sim.gps_fixes():
             m = NavSatFix()
-            m.header.stamp, m.header.frame_id = stamp(g.stamp), "gps"
+            m.header.stamp, m.header.frame_id = self.stamp(g.stamp), "gps"
             m.status.status, m.status.service = NavSatStatus.STATUS_FIX, NavSatStatus.SERVICE_GPS
             m.latitude, m.longitude, m.altitude = g.latitude, g.longitude, g.altitude
             m.position_covariance = [g.sigma_h**2, 0.0, 0.0, 0.0, g.sigma_h**2, 0.0, 0.0, 0.0, g.sigma_v**2]
             m.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
-            pub["gps"].publish(m)
+            self.pub_gps.publish(m)
 
-    def baro(k: int) -> None:
-        sample = suite.baro(plant.state)
+    def baro(self, k: int) -> None:
+        sample = self.suite.baro(self.plant.state)
         if sample is not None:
             m = FluidPressure()
-            m.header.stamp, m.header.frame_id = stamp(sample[0]), "base_link"
-            m.fluid_pressure, m.variance = sample[1], (12.0 * sc.baro_noise) ** 2
-            pub["baro"].publish(m)
+            m.header.stamp, m.header.frame_id = self.stamp(sample[0]), "base_link"
+            m.fluid_pressure, m.variance = sample[1], (12.0 * self.sensors.baro_noise) ** 2
+            self.pub_baro.publish(m)
 
-    def mag(k: int) -> None:
-        sample = suite.mag(plant.state)
+    def mag(self, k: int) -> None:
+        state = self.plant.state
+        sample = self.suite.mag(state)
         if sample is not None:
             m = MagneticField()
-            m.header.stamp, m.header.frame_id = stamp(plant.state.t), "base_link"
+            m.header.stamp, m.header.frame_id = self.stamp(state.t), "base_link"
             m.magnetic_field.x, m.magnetic_field.y, m.magnetic_field.z = sample
-            pub["mag"].publish(m)
+            self.pub_mag.publish(m)
 
-    def range_down(k: int) -> None:
-        sample = suite.range_down(plant.state)
+    def range_down(self, k: int) -> None:
+        state = self.plant.state
+        sample = self.suite.range_down(state)
         if sample is not None:
             m = Range()
-            m.header.stamp, m.header.frame_id = stamp(plant.state.t), "range_down"
-            m.radiation_type, m.field_of_view, m.min_range, m.max_range = Range.INFRARED, 0.05, RANGE_MIN, sc.range_max
+            m.header.stamp, m.header.frame_id = self.stamp(state.t), "range_down"
+            m.radiation_type, m.field_of_view, m.min_range = Range.INFRARED, 0.05, RANGE_MIN
+            m.max_range = self.sensors.range_max
             m.range = sample
-            pub["range"].publish(m)
+            self.pub_range.publish(m)
 
-    def battery(k: int) -> None:
-        b = suite.battery(plant.state, 1.0 / sc.battery_rate_hz)
+    def battery(self, k: int) -> None:
+        sc = self.sensors
+        b = self.suite.battery(self.plant.state, 1.0 / sc.battery_rate_hz)
         m = BatteryState()
-        m.header.stamp = stamp(b.stamp)
+        m.header.stamp = self.stamp(b.stamp)
         m.voltage, m.current, m.charge = b.voltage, -b.current, b.charge_ah  # ROS: negative while discharging
         m.capacity = m.design_capacity = sc.battery_capacity_ah
         m.percentage = b.percentage
@@ -198,60 +186,49 @@ def main(argv: list[str] | None = None) -> int:
         m.power_supply_technology = BatteryState.POWER_SUPPLY_TECHNOLOGY_LIPO
         m.present = True
         m.cell_voltage = [b.voltage / sc.battery_cells] * sc.battery_cells
-        pub["battery"].publish(m)
+        self.pub_battery.publish(m)
 
-    def truth(k: int) -> None:
-        s = plant.state
+    def truth(self, k: int) -> None:
+        s = self.plant.state
         m = Odometry()
-        m.header.stamp, m.header.frame_id, m.child_frame_id = stamp(s.t), "map", "base_link"
+        m.header.stamp, m.header.frame_id, m.child_frame_id = self.stamp(s.t), "map", "base_link"
         m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = s.position
         q = s.orientation
         m.pose.pose.orientation.w, m.pose.pose.orientation.x, m.pose.pose.orientation.y, m.pose.pose.orientation.z = q
         m.twist.twist.linear.x, m.twist.twist.linear.y, m.twist.twist.linear.z = s.velocity  # world frame (documented)
         m.twist.twist.angular.x, m.twist.twist.angular.y, m.twist.twist.angular.z = s.angular_velocity
-        pub["truth"].publish(m)
+        self.pub_truth.publish(m)
 
-    def divider(hz: float) -> int:
-        d = round(rate / hz)
-        if d < 1 or abs(rate / d - hz) > 1e-6 * hz:
-            raise SimConfigError(f"sim config: a {hz} Hz rate does not divide the physics rate {rate} Hz")
-        return d
+    def run(self) -> int:
+        """Run the executive until SIGINT/SIGTERM, then tear down; 0."""
+        import rclpy
 
-    tasks = {"physics": physics, "imu": imu, "gps": gps, "baro": baro, "mag": mag, "range": range_down,
-             "battery": battery, "truth": truth}
-    rates = {"physics": rate, "imu": sc.imu_rate_hz, "gps": sc.gps_rate_hz, "baro": sc.baro_rate_hz,
-             "mag": sc.mag_rate_hz, "range": sc.range_rate_hz, "battery": sc.battery_rate_hz, "truth": cfg["truth_rate"]}
+        executive, log = self.executive, self.node.get_logger()
+        signal.signal(signal.SIGINT, lambda s, f: executive.stop())
+        signal.signal(signal.SIGTERM, lambda s, f: executive.stop())
+        cfg = self.sim.config
+        log.info(f"sim: {cfg.airframe.name} at {cfg.origin}, physics {cfg.physics_rate_hz} Hz, "
+                 f"IMU {self.sensors.imu_rate_hz:.0f} Hz, GNSS {self.sensors.gps_rate_hz:.0f} Hz")
+        try:
+            executive.run()
+        finally:
+            executive.release_gc()
+            log.info(f"sim stopped at t = {self.plant.state.t:.1f} s; overruns {executive.profiler.overruns_total}")
+            self.node.destroy_node()
+            rclpy.try_shutdown()
+        return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    from c4d_ros import node_runtime
+
+    rclpy = node_runtime.init(argv)
+    node = rclpy.create_node("sim")
     try:
-        specs = [TaskSpec(n, "input" if n == "physics" else "telemetry", divider(rates[n]), 50 if n == "physics" else 30,
-                          0 if n == "physics" else None) for n in tasks]
-    except SimConfigError as exc:
+        sim = SimNode(node, read_config(node))
+    except (SimConfigError, ParameterError) as exc:
         return node_runtime.fail("sim", str(exc), node)
-    schedule = build_schedule(1_000_000 // rate, "gcdplus", specs)
-
-    def drain(k: int) -> None:
-        drainer.drain()
-
-    # plain sleeps (no spinning): the plant needs real time, not µs release precision
-    # a sensor keeps sampling whatever the simulator's lateness: samples whose tick was skipped after
-    # a stall are produced (late, once) at the next tick instead of vanishing — otherwise a 10 Hz
-    # battery could fall silent for 0.7 s on a loaded machine and the health monitor would declare
-    # the sim dead (physics simulates every skipped step itself)
-    executive = CyclicExecutive(schedule, tasks, MonotonicClock(spin_ns=0), name="sim", input_phase=drain,
-                                report_period_s=3600, manage_gc=True, catch_up=set(tasks) - {"physics"})
-    import signal
-
-    signal.signal(signal.SIGINT, lambda s, f: executive.stop())
-    signal.signal(signal.SIGTERM, lambda s, f: executive.stop())
-    node.get_logger().info(f"sim: {af.name} at {cfg['origin']}, physics {rate} Hz, IMU {sc.imu_rate_hz:.0f} Hz, "
-                           f"GNSS {sc.gps_rate_hz:.0f} Hz")
-    try:
-        executive.run()
-    finally:
-        executive.release_gc()
-        node.get_logger().info(f"sim stopped at t = {plant.state.t:.1f} s; overruns {executive.profiler.overruns_total}")
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return sim.run()
 
 
 if __name__ == "__main__":

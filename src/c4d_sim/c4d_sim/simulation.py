@@ -1,0 +1,123 @@
+"""The simulated vehicle in real time, free of ROS: plant, sensors, faults, motor command, schedule.
+
+Why here and not in the node: what the simulator does each physics tick (wind and gust, every
+skipped step simulated after a stall so simulated time stays wall time, the ESC failsafe), how a
+fault setting is applied or refused, and which executive task runs at which divider are the
+simulator's behaviour; the node only maps them to topics and parameters. All of it is testable
+without DDS.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from c4d_sched.tickschedule import TaskSpec
+
+from .plant import MultirotorPlant
+from .sensors import Faults, GpsSample, SensorSuite
+from .sim_config import SimConfig, SimConfigError
+
+ESC_TIMEOUT_S = 0.2  # without a motor command for this long the ESCs stop the motors
+SENSOR_TASKS = ("imu", "gps", "baro", "mag", "range", "battery", "truth")  # executive tasks after "physics"
+BOOL_FAULTS = frozenset({"imu_dropout", "imu_freeze", "gps_loss", "baro_dropout", "baro_freeze", "mag_dropout",
+                         "range_dropout"})
+
+
+class Simulation:
+    """Plant + sensor suite + faults, stepped by `physics(k)` once per executive tick k.
+
+    `tick0_ns()` returns the monotonic deadline of tick 0 (the executive's t0_ns); it is read at
+    the first tick to anchor simulated t = 0 to wall-clock time (`wall_epoch`), so sensor stamps
+    are wall times. Motor commands arrive through `command()`; one older than ESC_TIMEOUT_S
+    (monotonic clock) leaves the motors unpowered.
+    """
+
+    def __init__(self, config: SimConfig, tick0_ns: Callable[[], int | None]) -> None:
+        self.config = config
+        self.motors = len(config.airframe.motors)
+        self.plant = MultirotorPlant(config.airframe, (0.0, 0.0, 0.0), config.yaw)
+        self.faults = Faults()
+        self.suite = SensorSuite(config.sensors, config.origin, seed=config.seed, faults=self.faults)
+        self.extra_gust = 0.0  # [m/s] fault: added to the configured gust amplitude
+        self.outputs: list[float] = [0.0] * self.motors
+        self.armed = False
+        self.command_t = -math.inf  # monotonic time of the last motor command
+        self.wall_epoch = 0.0  # wall-clock time of simulated t = 0, fixed at the first physics tick
+        self.gps_pending: deque[GpsSample] = deque()  # measured, waiting for the GNSS latency
+        self._tick0_ns = tick0_ns
+        self._dt = 1.0 / config.physics_rate_hz
+        self._last_tick = -1
+
+    def command(self, outputs: Sequence[float], armed: bool) -> None:
+        """A motor command (one output per motor in [0, 1]); ignored when the count is wrong."""
+        if len(outputs) == self.motors:
+            self.outputs, self.armed, self.command_t = list(outputs), armed, time.monotonic()
+
+    def physics(self, k: int) -> None:
+        """Executive task: advance the plant to tick k (ticks skipped after a stall are simulated too)."""
+        plant, cfg = self.plant, self.config
+        if self._last_tick < 0:  # anchor simulated t = 0 to the wall-clock time of tick 0's deadline
+            self.wall_epoch = time.time() - (time.monotonic_ns() - (self._tick0_ns() or 0)) / 1e9 - plant.state.t
+        fresh = time.monotonic() - self.command_t < ESC_TIMEOUT_S
+        gust = (cfg.gust + self.extra_gust) * 0.5 * (1 - math.cos(2 * math.pi * plant.state.t / cfg.gust_period))
+        plant.wind = (cfg.wind_mean[0] + gust, cfg.wind_mean[1], cfg.wind_mean[2])
+        for _ in range(k - self._last_tick):  # every skipped tick is simulated: sim time stays wall time
+            plant.step(self._dt, self.outputs, self.armed and fresh)
+        self._last_tick = k
+
+    def gps_fixes(self) -> list[GpsSample]:
+        """Sample the GNSS receiver when due; return the fixes whose latency has passed, oldest first."""
+        sample = self.suite.gps(self.plant.state, 1.0 / self.config.sensors.gps_rate_hz)
+        pending = self.gps_pending
+        if sample is not None:
+            pending.append(sample)
+        due, latency, now = [], self.config.sensors.gps_latency_s, self.plant.state.t + 1e-9
+        while pending and pending[0].stamp + latency <= now:
+            due.append(pending.popleft())
+        return due
+
+    def set_fault(self, name: str, value: Any) -> str | None:
+        """Apply fault `name` (without the 'fault.' prefix); return the reason when refused."""
+        if name == "motor_health":
+            values = list(value)
+            if len(values) != self.motors or not all(0.0 <= v <= 1.0 for v in values):
+                return f"motor_health needs {self.motors} values in [0, 1]"
+            self.plant.motor_health = [float(v) for v in values]
+        elif name == "gps_drift_m_s":
+            values = list(value)
+            if len(values) != 3:
+                return "gps_drift_m_s needs 3 values"
+            self.faults.gps_drift = (float(values[0]), float(values[1]), float(values[2]))
+        elif name == "wind_gust_m_s":
+            self.extra_gust = float(value)
+        elif name == "battery_drain_factor":
+            if float(value) < 0:
+                return "battery_drain_factor must be >= 0"
+            self.faults.battery_drain_factor = float(value)
+        elif name in BOOL_FAULTS:
+            setattr(self.faults, name, bool(value))
+        else:
+            return f"unknown fault '{name}'"
+        return None
+
+
+def task_specs(config: SimConfig) -> list[TaskSpec]:
+    """The executive's tasks: physics first in the input class, then the sensors at their rates.
+
+    Raises SimConfigError when a rate does not divide the physics rate."""
+    rate, sc = config.physics_rate_hz, config.sensors
+    rates = {"imu": sc.imu_rate_hz, "gps": sc.gps_rate_hz, "baro": sc.baro_rate_hz, "mag": sc.mag_rate_hz,
+             "range": sc.range_rate_hz, "battery": sc.battery_rate_hz, "truth": config.truth_rate_hz}
+
+    def divider(hz: float) -> int:
+        d = round(rate / hz)
+        if d < 1 or abs(rate / d - hz) > 1e-6 * hz:
+            raise SimConfigError(f"sim config: a {hz} Hz rate does not divide the physics rate {rate} Hz")
+        return d
+
+    return [TaskSpec("physics", "input", 1, 50, 0)] + [TaskSpec(name, "telemetry", divider(rates[name]), 30, None)
+                                                       for name in SENSOR_TASKS]

@@ -1,0 +1,72 @@
+"""The simulator without DDS: typed configuration, executive task table, fault settings, motor
+command with the ESC failsafe, GNSS latency."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from c4d_sim.sim_config import SimConfig, SimConfigError, default_sim_config, load_sim_config
+from c4d_sim.simulation import ESC_TIMEOUT_S, SENSOR_TASKS, Simulation, task_specs
+
+
+@pytest.fixture(scope="module")
+def config() -> SimConfig:
+    return load_sim_config(default_sim_config())
+
+
+def simulation(config: SimConfig) -> Simulation:
+    t0 = time.monotonic_ns()
+    return Simulation(config, lambda: t0)
+
+
+def test_default_config_is_typed(config):
+    assert config.physics_rate_hz == 1000 and config.truth_rate_hz == 100.0
+    assert abs(config.origin.latitude - 43.5629) < 1e-9 and len(config.wind_mean) == 3
+    assert len(config.airframe.motors) == 4
+
+
+def test_task_table_and_rates_that_do_not_divide(config):
+    specs = task_specs(config)
+    assert [s.name for s in specs] == ["physics", *SENSOR_TASKS]
+    assert {s.name: s.divider for s in specs}["imu"] == 2 and specs[0].divider == 1
+    from dataclasses import replace
+
+    bad = replace(config, sensors=replace(config.sensors, imu_rate_hz=300.0))
+    with pytest.raises(SimConfigError, match="300.0 Hz rate does not divide the physics rate 1000 Hz"):
+        task_specs(bad)
+
+
+def test_faults_are_applied_or_refused_with_a_reason(config):
+    sim = simulation(config)
+    assert sim.set_fault("imu_dropout", True) is None and sim.faults.imu_dropout
+    assert sim.set_fault("gps_drift_m_s", [1.0, 0.0, -1.0]) is None and sim.faults.gps_drift == (1.0, 0.0, -1.0)
+    assert sim.set_fault("motor_health", [1.0, 0.5, 1.0, 1.0]) is None and sim.plant.motor_health[1] == 0.5
+    assert sim.set_fault("wind_gust_m_s", 3.0) is None and sim.extra_gust == 3.0
+    assert sim.set_fault("motor_health", [1.0, 2.0]) == "motor_health needs 4 values in [0, 1]"
+    assert sim.set_fault("gps_drift_m_s", [1.0]) == "gps_drift_m_s needs 3 values"
+    assert sim.set_fault("battery_drain_factor", -1.0) == "battery_drain_factor must be >= 0"
+    assert sim.set_fault("no_such_fault", 1) is not None
+
+
+def test_motor_command_and_esc_failsafe(config):
+    sim = simulation(config)
+    sim.command([0.9] * 3, True)  # wrong motor count: ignored
+    assert not sim.armed
+    sim.command([0.9] * 4, True)
+    for k in range(200):
+        sim.physics(k)
+    assert sim.plant.state.position[2] > 0.0 and abs(sim.plant.state.t - 0.2) < 1e-9  # it lifts off
+    sim.command_t -= ESC_TIMEOUT_S  # the command is now too old: the ESCs stop the motors
+    sim.physics(400)  # a stall: the 200 skipped ticks are simulated too
+    assert abs(sim.plant.state.t - 0.401) < 1e-9 and max(sim.plant.state.thrusts) < 0.02  # from ~8 N
+
+
+def test_gnss_fix_is_released_after_its_latency(config):
+    sim = simulation(config)
+    assert sim.gps_fixes() == []  # measured at t = 0, due at t = 0.05 s
+    for k in range(50):
+        sim.physics(k)
+    fixes = sim.gps_fixes()
+    assert [f.stamp for f in fixes] == [0.0]
