@@ -79,17 +79,17 @@ GROUND_TRUTH = Topic("sim/ground_truth", "nav_msgs/msg/Odometry", S, "100 Hz", (
 # --- perception ---------------------------------------------------------------------------
 P_IMU = Topic("perception/imu", "sensor_msgs/msg/Imu", S, "500 Hz", ("perception",), ("navigation", "core"),
               "validated, calibrated; the core takes the gyro")
-P_GPS = Topic("perception/gps", "sensor_msgs/msg/NavSatFix", S, "10 Hz", ("perception",), ("navigation", "health"))
+P_GPS = Topic("perception/gps", "sensor_msgs/msg/NavSatFix", S, "10 Hz", ("perception",), ("navigation", "bridge"))
 P_BARO = Topic("perception/baro", "sensor_msgs/msg/FluidPressure", S, "50 Hz", ("perception",), ("navigation",))
 P_MAG = Topic("perception/mag", "sensor_msgs/msg/MagneticField", S, "50 Hz", ("perception",), ("navigation",))
 P_RANGE_DOWN = Topic("perception/range_down", "sensor_msgs/msg/Range", S, "50 Hz", ("perception",), ("navigation",))
 P_HEALTH = Topic("perception/health", "diagnostic_msgs/msg/DiagnosticArray", STATS, "2 Hz", ("perception",),
-                 ("health", "bridge"), "sensor health")
+                 ("health", "mission"), "sensor health")
 # --- navigation ---------------------------------------------------------------------------
 NAV_STATE = Topic("navigation/state", "c4d_interfaces/msg/VehicleState", ST, "500 Hz (per IMU sample)", ("navigation",),
                   ("core", "mission", "payload", "health", "bridge"), "full estimated state")
-NAV_ODOMETRY = Topic("navigation/odometry", "nav_msgs/msg/Odometry", ST, "50 Hz (parameter)", ("navigation",), (),
-                     "the estimate as standard odometry in `map` (tools, the c4d CLI)")
+NAV_ODOMETRY = Topic("navigation/odometry", "nav_msgs/msg/Odometry", ST, "50 Hz (parameter)", ("navigation",), ("health",),
+                     "the estimate as standard odometry in `map` (tools, the c4d CLI); health: navigation's liveness")
 # --- GNC core -----------------------------------------------------------------------------
 SETPOINT = Topic("guidance/setpoint", "c4d_interfaces/msg/GuidanceSetpoint", ST,
                  "50 Hz while flying a plan / RTL / go-to; per MANUAL_CONTROL frame in STABILIZED/ACRO",
@@ -97,30 +97,30 @@ SETPOINT = Topic("guidance/setpoint", "c4d_interfaces/msg/GuidanceSetpoint", ST,
 ACTUATORS = Topic("control/actuators", "c4d_interfaces/msg/ActuatorCommand", ST, "every tick (500 Hz)", ("core",), ("sim",),
                   "the core is the only publisher")
 STATUS = Topic("vehicle/status", "c4d_interfaces/msg/VehicleStatus", L, "on change + 2 Hz (checked at 10 Hz)", ("core",),
-               ("mission", "payload", "health", "bridge"), "armed, mode, landed state, failsafe")
+               ("navigation", "mission", "payload", "health", "bridge"), "armed, mode, landed state, failsafe")
 EXECUTOR_STATS = Topic("gnc/executor_stats", "c4d_interfaces/msg/ExecutorStats", STATS, "1 Hz", ("core",),
                        ("health", "bridge"), "cyclic-executive profiler")
 SCHEDULE = Topic("gnc/schedule", "c4d_interfaces/msg/ScheduleTable", L, "once", ("core",), (), "static schedule (GCD+)")
 # --- mission and payload ------------------------------------------------------------------
 MISSION_STATE = Topic("mission/state", "c4d_interfaces/msg/MissionState", L, "on change + 2 Hz", ("mission",),
-                      ("payload", "bridge"))
+                      ("payload", "health", "bridge"), "health: mission's liveness")
 MISSION_PLAN = Topic("mission/plan", "c4d_interfaces/msg/MissionPlan", L, "on change", ("mission",),
                      ("payload", "health", "bridge"))
 CAPTURES = Topic("payload/captures", "c4d_interfaces/msg/CaptureEvent", CMD, "per capture", ("payload",), ("bridge",))
 GIMBAL = Topic("payload/gimbal", "geometry_msgs/msg/Vector3Stamped", S, "50 Hz while a mission runs", ("payload",), (),
                "roll, pitch, yaw [rad], body frame")
 # --- health -------------------------------------------------------------------------------
-DIAGNOSTICS = Topic("diagnostics", "diagnostic_msgs/msg/DiagnosticArray", STATS, "1 Hz", ("health",), ("bridge",))
+DIAGNOSTICS = Topic("diagnostics", "diagnostic_msgs/msg/DiagnosticArray", STATS, "1 Hz", ("health",), ())
 HEALTH_SUMMARY = Topic("health/summary", "diagnostic_msgs/msg/DiagnosticStatus", L, "10 Hz", ("health",), ("bridge",),
                        "failsafe, reason, active events, dead nodes")
 # --- bridge -------------------------------------------------------------------------------
 GCS_HEARTBEAT = Topic("bridge/gcs_heartbeat", "std_msgs/msg/Header", ST, "per GCS HEARTBEAT (~1 Hz per GCS)", ("bridge",),
-                      ("health",), "frame_id 'gcs'; health's `link_topic`")
+                      (), "frame_id 'gcs'; health subscribes when its `link_topic` names it (not in the bundled YAML)")
 LINK_STATS = Topic("bridge/link_stats", "diagnostic_msgs/msg/DiagnosticArray", STATS, "1 Hz", ("bridge",), (),
                    "link up/losses, per endpoint rx/tx, rejections, utilisation")
 # --- recorder -----------------------------------------------------------------------------
 RECORDER_STATUS = Topic("recorder/status", "diagnostic_msgs/msg/DiagnosticStatus", L, "1 Hz + on change", ("recorder",),
-                        ("bridge",), "state, file, written, dropped")
+                        (), "state, file, written, dropped; the c4d CLI and tests")
 
 TOPICS: tuple[Topic, ...] = (
     IMU, GPS, BARO, MAG, RANGE_DOWN, BATTERY, GROUND_TRUTH,
@@ -140,8 +140,9 @@ VEHICLE_COMMAND = Service("vehicle/command", "c4d_interfaces/srv/VehicleCommand"
                           "every vehicle command incl. RTL; also the c4d CLI")
 MISSION_UPLOAD = Service("mission/upload", "c4d_interfaces/srv/UploadMission", "mission", ("bridge",),
                          "validate and accept a plan; also the c4d CLI")
-MISSION_DOWNLOAD = Service("mission/download", "c4d_interfaces/srv/DownloadMission", "mission", ("bridge",))
-MISSION_CONTROL = Service("mission/control", "c4d_interfaces/srv/MissionControl", "mission", ("bridge", "health"),
+MISSION_DOWNLOAD = Service("mission/download", "c4d_interfaces/srv/DownloadMission", "mission", (),
+                           "tools (the bridge answers MAVLink downloads from mission/plan)")
+MISSION_CONTROL = Service("mission/control", "c4d_interfaces/srv/MissionControl", "mission", ("bridge",),
                           "start / pause / resume / clear / set current; also the c4d CLI")
 RECORDER_START = Service("recorder/start", "std_srvs/srv/Trigger", "recorder", (), "c4d CLI, tests")
 RECORDER_STOP = Service("recorder/stop", "std_srvs/srv/Trigger", "recorder", (), "c4d CLI, tests")
