@@ -21,6 +21,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from c4d_ros.manifest import MISSION_UPLOAD
+
 from .ros_link import key_values
 from .summary import FLIGHT_MODES, NAV_STATES, FlightSummary, progress_line
 from .supervisor import _pdeathsig, signal_group
@@ -187,7 +189,7 @@ def _fly(link, key_values, config, options, plan, up, summary, interrupted, say,
     while True:
         reply = link.call(link.upload, UploadMission.Request(plan=plan_to_msg(plan)), watch=watch)
         if reply is None:
-            raise FlightError("mission/upload did not answer (is the mission node running? see logs/mission.log)")
+            raise FlightError(f"{MISSION_UPLOAD.name} did not answer (is the mission node running? see logs/mission.log)")
         if reply.accepted or not any("no home" in e for e in reply.errors) or time.monotonic() > deadline:
             break
         link.spin(1.0, watch=watch)

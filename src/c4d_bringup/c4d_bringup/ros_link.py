@@ -3,8 +3,9 @@
 GraphLink subscribes to the low-rate topics a ground operator looks at (vehicle/status,
 mission/state, health/summary, recorder/status latched; navigation/odometry 50 Hz,
 sensors/battery, gnc/executor_stats, guidance/setpoint) and keeps the newest of each in
-`latest`; navigation/state (500 Hz) is sampled, not spun (c4d_gnc.ros_drain.LatestSampler).
-Callbacks registered in `listeners` see every message (the flight summary uses them).
+`latest`; navigation/state (500 Hz) is sampled, not spun (c4d_ros.drain.LatestSampler). Names and
+QoS come from the interface manifest (c4d_ros.manifest). Callbacks registered in `listeners`
+see every message (the flight summary uses them).
 """
 
 from __future__ import annotations
@@ -22,36 +23,33 @@ class GraphLink:
         from diagnostic_msgs.msg import DiagnosticStatus
         from nav_msgs.msg import Odometry
         from rclpy.executors import SingleThreadedExecutor
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from sensor_msgs.msg import BatteryState
 
         from c4d_interfaces.msg import ExecutorStats, GuidanceSetpoint, MissionState, VehicleState, VehicleStatus
         from c4d_interfaces.srv import MissionControl, UploadMission, VehicleCommand
+        from c4d_ros import manifest as topics
         from c4d_ros.drain import LatestSampler
 
         self.node = self.rclpy.create_node(f"{name}_{os.getpid()}")
-        self.side = self.rclpy.create_node(f"_{name}_samples_{os.getpid()}")
+        self.side = self.rclpy.create_node(f"{topics.side_node_name(name)}_{os.getpid()}")
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        best = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
         self.latest: dict[str, object] = {}
         self.listeners: dict[str, list[Callable]] = {}
-        for key, msg_type, topic, qos in (
-                ("status", VehicleStatus, "vehicle/status", latched),
-                ("mission", MissionState, "mission/state", latched),
-                ("health", DiagnosticStatus, "health/summary", latched),
-                ("recorder", DiagnosticStatus, "recorder/status", latched),
-                ("odometry", Odometry, "navigation/odometry", best),
-                ("battery", BatteryState, "sensors/battery", best),
-                ("stats", ExecutorStats, "gnc/executor_stats", 10),
-                ("setpoint", GuidanceSetpoint, "guidance/setpoint", best)):
-            self.node.create_subscription(msg_type, topic, self._store(key), qos)
-        self.state = LatestSampler(self.side, VehicleState, "navigation/state",
-                                   QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
-        self.upload = self.node.create_client(UploadMission, "mission/upload")
-        self.control = self.node.create_client(MissionControl, "mission/control")
-        self.vehicle = self.node.create_client(VehicleCommand, "vehicle/command")
+        for key, msg_type, topic in (
+                ("status", VehicleStatus, topics.STATUS),
+                ("mission", MissionState, topics.MISSION_STATE),
+                ("health", DiagnosticStatus, topics.HEALTH_SUMMARY),
+                ("recorder", DiagnosticStatus, topics.RECORDER_STATUS),
+                ("odometry", Odometry, topics.NAV_ODOMETRY),
+                ("battery", BatteryState, topics.BATTERY),
+                ("stats", ExecutorStats, topics.EXECUTOR_STATS),
+                ("setpoint", GuidanceSetpoint, topics.SETPOINT)):
+            self.node.create_subscription(msg_type, topic.name, self._store(key), topic.qos)
+        self.state = LatestSampler(self.side, VehicleState, topics.NAV_STATE.name, topics.NAV_STATE.qos)
+        self.upload = self.node.create_client(UploadMission, topics.MISSION_UPLOAD.name)
+        self.control = self.node.create_client(MissionControl, topics.MISSION_CONTROL.name)
+        self.vehicle = self.node.create_client(VehicleCommand, topics.VEHICLE_COMMAND.name)
 
     def _store(self, key: str) -> Callable:
         def store(msg) -> None:

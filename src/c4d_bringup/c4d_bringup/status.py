@@ -13,6 +13,8 @@ import math
 import os
 import sys
 
+from c4d_ros.manifest import BATTERY, EXECUTOR_STATS, HEALTH_SUMMARY, MISSION_STATE, NAV_ODOMETRY, STATUS
+
 from .ros_link import key_values
 from .summary import FLIGHT_MODES, LANDED, MISSION_STATES, NAV_STATES
 from .system_config import SystemConfig
@@ -37,31 +39,31 @@ def render(expected: list[str], present: set[str], latest: dict, domain: str) ->
                  + (f"   (+ {', '.join(others)})" if others else ""))
     s = latest.get("status")
     if s is None:
-        lines.append("vehicle   no vehicle/status")
+        lines.append(f"vehicle   no {STATUS.name}")
     else:
         fs = "" if not s.failsafe_action else f", failsafe {s.failsafe_action} {s.failsafe_reason}"
         lines.append(f"vehicle   {'ARMED' if s.armed else 'disarmed'}, mode {FLIGHT_MODES.get(s.flight_mode, '?')}"
                      f"/{NAV_STATES.get(s.nav_state, '?')}, {LANDED.get(s.landed_state, '?')}{fs}")
     o = latest.get("odometry")
     if o is None:
-        lines.append("position  no navigation/odometry")
+        lines.append(f"position  no {NAV_ODOMETRY.name}")
     else:
         p, v = o.pose.pose.position, o.twist.twist.linear
         lines.append(f"position  E {p.x:.2f} N {p.y:.2f} U {p.z:.2f} m (map, ENU), speed {math.hypot(v.x, v.y, v.z):.1f} m/s")
     b = latest.get("battery")
-    lines.append("battery   no sensors/battery" if b is None else
+    lines.append(f"battery   no {BATTERY.name}" if b is None else
                  f"battery   {b.voltage:.1f} V, {100 * b.percentage:.0f} %" + (
                      f", {b.current:.1f} A" if math.isfinite(b.current) else ""))
     x = latest.get("stats")
-    lines.append("executor  no gnc/executor_stats" if x is None else
+    lines.append(f"executor  no {EXECUTOR_STATS.name}" if x is None else
                  f"executor  {x.executor} {x.tick_rate_hz:.0f} Hz: load mean {x.load_mean_percent:.1f} % max "
                  f"{x.load_max_percent:.1f} %, jitter p99 {x.release_jitter_p99_us:.0f} us, overruns {x.overruns} "
                  f"(total {x.overruns_total} of {x.ticks_total} ticks), cpu {x.cpu_percent:.0f} %")
     m = latest.get("mission")
-    lines.append("mission   no mission/state" if m is None else f"mission   {MISSION_STATES.get(m.state, '?')}" + (
+    lines.append(f"mission   no {MISSION_STATE.name}" if m is None else f"mission   {MISSION_STATES.get(m.state, '?')}" + (
         f", item {min(m.current_item + 1, m.total_items)}/{m.total_items}, {100 * m.progress:.0f} %" if m.total_items else ""))
     h = key_values(latest.get("health"))
-    lines.append("health    no health/summary" if not h else
+    lines.append(f"health    no {HEALTH_SUMMARY.name}" if not h else
                  f"health    {latest['health'].message or 'ok'}; failsafe {h.get('failsafe', '?')}"
                  + (f" ({h['reason']})" if h.get("reason") else "")
                  + (f"; dead nodes {h['dead_nodes']}" if h.get("dead_nodes") else ""))
