@@ -1,21 +1,18 @@
 """`ros2 run c4d_gnc core` — the GNC core node: a thin rclpy edge around GncCore.
 
-The node never uses rclpy timers: it runs the CyclicExecutive (absolute deadlines) in the
-main thread, and each tick's input phase drains the subscriptions and the command service
-without blocking (spin_once with a zero timeout) into the GncCore blackboard.
+The node never uses rclpy timers and no executor spins it: it runs the CyclicExecutive
+(absolute deadlines) in the main thread, and each tick's input phase drains the
+subscriptions, the command service and the parameter services without blocking (Drainer)
+into the GncCore blackboard.
 
-Interfaces (docs/ARCHITECTURE.md):
-  subscribes  <imu_topic> (sensor_msgs/Imu, gyro for the rate loop), navigation/state
-              (c4d_interfaces/VehicleState), guidance/setpoint (c4d_interfaces/GuidanceSetpoint)
-  serves      gnc/command (c4d_interfaces/VehicleCommand: arm, disarm, take-off, land, hold, set mode)
-  publishes   control/actuators (ActuatorCommand, every tick; the only publisher),
-              vehicle/status (VehicleStatus, latched, on change and at 2 Hz),
-              gnc/executor_stats (ExecutorStats, at report_period_s), gnc/schedule (ScheduleTable, latched)
-Parameters: config (core YAML), airframe (name or path), phase_method (gcdplus|paparazzi|zero),
-            imu_topic, log_table (print the profiler table each report), rt_priority (SCHED_FIFO
-            priority for the process, 0 = normal scheduling).
+Interfaces (c4d_ros.manifest, docs/ARCHITECTURE.md):
+  subscribes  <imu_topic> (perception/imu: the gyro for the rate loop), navigation/state, guidance/setpoint
+  serves      gnc/command (arm, disarm, take-off, land, hold, set mode, go-to; applied at the next tick)
+  publishes   control/actuators (every tick; the only publisher), vehicle/status (latched, on change
+              and at 5 Hz), gnc/executor_stats (every report_period_s), gnc/schedule (latched, once)
+Parameters: PARAMS below (`ros2 param describe core <name>`); all read-only (a change needs a restart).
 SIGINT/SIGTERM: the loop stops, zero motor commands (armed = false) are published, exit 0.
-Bad configuration: one line on stderr, exit 2, nothing armed.
+Bad configuration or parameter: one line on stderr, exit 2, nothing armed.
 """
 
 from __future__ import annotations
@@ -24,174 +21,202 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 
+from sensor_msgs.msg import Imu
+
+from c4d_interfaces.msg import ActuatorCommand, ExecutorStats, GuidanceSetpoint, ScheduleTable, VehicleState, VehicleStatus
+from c4d_interfaces.srv import VehicleCommand
+from c4d_ros import node_runtime
 from c4d_ros.drain import Drainer
+from c4d_ros.manifest import ACTUATORS, CORE_COMMAND, EXECUTOR_STATS, NAV_STATE, P_IMU, SCHEDULE, SETPOINT, STATUS
+from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_sched.executive import CyclicExecutive, MonotonicClock
-from c4d_sched.profiler import format_table
+from c4d_sched.profiler import ExecutorReport, format_table
 
-from .core_config import CoreConfigError, load_core_config
-from .gnc import Command, GncCore, Mode, Request
+from . import ros_conversions as conv
+from .core_commands import answer_command
+from .core_config import CoreConfig, CoreConfigError, load_core_config
+from .gnc import GncCore
+from .status_cadence import StatusCadence
 
-RESULT_ACCEPTED, RESULT_TEMPORARILY_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED = 0, 1, 2, 3
-STATUS_PERIOD_S = 0.2  # 5 Hz: also the heartbeat health watches
+NAME = "core"
+PARAMS = {
+    "config": Spec("", "core YAML: airframe + executive schedule [file path]; empty: the package's config/core.yaml",
+                   read_only=True),
+    "airframe": Spec("", "airframe, overrides the config's [name in config/airframes or YAML file path]; empty: the config's",
+                     read_only=True),
+    "phase_method": Spec("", "task phase assignment, overrides the config's [gcdplus | paparazzi | zero]; empty: the config's",
+                         read_only=True),
+    "imu_topic": Spec(P_IMU.name, "gyro source of the rate loop [topic name]", read_only=True),
+    "log_table": Spec(False, "print the profiler table with each report [bool]", read_only=True),
+    "rt_priority": Spec(0, "SCHED_FIFO priority of the process [0..99]; 0 = normal scheduling", 0, 99, read_only=True),
+}
 
 
-def main(argv: list[str] | None = None) -> int:
-    import rclpy
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-    from rclpy.signals import SignalHandlerOptions
-    from sensor_msgs.msg import Imu
+@dataclass(frozen=True)
+class CoreParams:
+    config: str
+    airframe: str
+    phase_method: str
+    imu_topic: str
+    log_table: bool
+    rt_priority: int
 
-    from c4d_interfaces.msg import ActuatorCommand, ExecutorStats, GuidanceSetpoint, ScheduleTable, VehicleState, VehicleStatus
-    from c4d_interfaces.srv import VehicleCommand
+    def load_config(self) -> CoreConfig:
+        return load_core_config(self.config or None, self.airframe or None, self.phase_method or None)
 
-    from . import ros_conversions as conv
 
-    rclpy.init(args=argv if argv is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node("core")
-    try:
-        config_path = node.declare_parameter("config", "").value
-        airframe = node.declare_parameter("airframe", "").value
-        method = node.declare_parameter("phase_method", "").value
-        imu_topic = node.declare_parameter("imu_topic", "perception/imu").value
-        log_table = node.declare_parameter("log_table", False).value
-        rt_priority = int(node.declare_parameter("rt_priority", 0).value)
-        cfg = load_core_config(config_path or None, airframe or None, method or None)
-    except CoreConfigError as exc:
-        print(f"core: error: {exc}", file=sys.stderr)
-        node.destroy_node()
-        rclpy.try_shutdown()
-        return 2
+class CoreNode:
+    """Maps the core's topics and service onto GncCore and drives it with the CyclicExecutive.
 
-    schedule = cfg.schedule
-    core = GncCore(cfg.airframe, schedule.tick_us / 1e6)
-    sensor_qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
-    state_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
-    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    stats_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    Per tick: input phase (drain, stamp the blackboard), latch, the scheduled tasks, output
+    phase (actuator command). Nothing here waits or allocates beyond the messages it sends.
+    """
 
-    def clock_s() -> float:
-        return node.get_clock().now().nanoseconds * 1e-9
+    def __init__(self, node, cfg: CoreConfig, params: CoreParams) -> None:
+        self.node, self.cfg, self.params = node, cfg, params
+        self.log = node.get_logger()
+        self.clock = node.get_clock()
+        self.core = GncCore(cfg.airframe, cfg.schedule.tick_us / 1e6)
+        self.status = StatusCadence()
+        self.drainer = Drainer(node)
+        self.drainer.subscription(Imu, params.imu_topic, self.on_imu, P_IMU.qos)
+        self.drainer.subscription(VehicleState, NAV_STATE.name, self.on_state, NAV_STATE.qos)
+        self.drainer.subscription(GuidanceSetpoint, SETPOINT.name, self.on_setpoint, SETPOINT.qos)
+        self.drainer.service(VehicleCommand, CORE_COMMAND.name, self.on_command)
+        self.pub_actuators = node.create_publisher(ActuatorCommand, ACTUATORS.name, ACTUATORS.qos)
+        self.pub_status = node.create_publisher(VehicleStatus, STATUS.name, STATUS.qos)
+        self.pub_stats = node.create_publisher(ExecutorStats, EXECUTOR_STATS.name, EXECUTOR_STATS.qos)
+        self.pub_schedule = node.create_publisher(ScheduleTable, SCHEDULE.name, SCHEDULE.qos)
+        self.drainer.adopt_node_services()  # parameter services too: no executor spins this node
+        self.executive = CyclicExecutive(
+            cfg.schedule, self._task_functions(), MonotonicClock(), name=cfg.executive_name, input_phase=self.input_phase,
+            latch=self.latch, output_phase=self.output_phase, report_period_s=cfg.report_period_s,
+            on_report=self.on_report, manage_gc=True)
 
-    def on_imu(msg: Imu) -> None:
+    def _task_functions(self) -> dict[str, Callable[[int], None]]:
+        schedule, core_tasks = self.cfg.schedule, self.core.task_functions()
+        functions: dict[str, Callable[[int], None]] = {}
+        for task in schedule.tasks:
+            if task.name == "status":
+                functions[task.name] = self.status_task
+            else:
+                fn, dt = core_tasks[task.name], task.divider * schedule.tick_us / 1e6
+                functions[task.name] = lambda k, fn=fn, dt=dt: fn(dt)
+        return functions
+
+    def clock_s(self) -> float:
+        return self.clock.now().nanoseconds * 1e-9
+
+    # ----------------------------------------------------------------- inputs (drained each tick)
+    def on_imu(self, msg: Imu) -> None:
         w = msg.angular_velocity
-        core.inputs.gyro = (w.x, w.y, w.z)
-        core.inputs.gyro_stamp = conv.stamp_to_s(msg.header.stamp)
+        self.core.inputs.gyro = (w.x, w.y, w.z)
+        self.core.inputs.gyro_stamp = conv.stamp_to_s(msg.header.stamp)
 
-    def on_state(msg: VehicleState) -> None:
-        core.inputs.state = conv.state_from_msg(msg)
+    def on_state(self, msg: VehicleState) -> None:
+        self.core.inputs.state = conv.state_from_msg(msg)
 
-    def on_setpoint(msg: GuidanceSetpoint) -> None:
+    def on_setpoint(self, msg: GuidanceSetpoint) -> None:
         try:
-            core.inputs.setpoint = conv.setpoint_from_msg(msg)
+            self.core.inputs.setpoint = conv.setpoint_from_msg(msg)
         except ValueError as exc:
-            node.get_logger().warning(f"guidance setpoint ignored: {exc}")
+            self.log.warning(f"guidance setpoint ignored: {exc}")
 
-    def on_command(request: VehicleCommand.Request, response: VehicleCommand.Response) -> VehicleCommand.Response:
-        core.inputs.now = clock_s()
-        try:
-            command = Command(request.command)
-        except ValueError:
-            response.result, response.message = RESULT_UNSUPPORTED, f"command {request.command} is not served by the core"
-            return response
-        try:
-            mode = Mode(request.mode) if command == Command.SET_MODE else Mode.UNKNOWN
-        except ValueError:
-            response.result, response.message = RESULT_DENIED, f"unknown mode {request.mode}"
-            return response
-        ok, reason = core.request(Request(command, mode, float(request.altitude), bool(request.force)))
-        if ok:
-            response.result, response.message = RESULT_ACCEPTED, reason
-        else:
-            stale = "stale" in reason or "valid" in reason
-            response.result = RESULT_TEMPORARILY_REJECTED if stale else RESULT_DENIED
-            response.message = reason
+    def on_command(self, request: VehicleCommand.Request, response: VehicleCommand.Response) -> VehicleCommand.Response:
+        self.core.inputs.now = self.clock_s()
+        result, response.message = answer_command(self.core, request.command, request.mode, request.altitude, request.force)
+        response.result = int(result)
         return response
 
-    drainer = Drainer(node)
-    drainer.subscription(Imu, imu_topic, on_imu, sensor_qos)
-    drainer.subscription(VehicleState, "navigation/state", on_state, state_qos)
-    drainer.subscription(GuidanceSetpoint, "guidance/setpoint", on_setpoint, state_qos)
-    drainer.service(VehicleCommand, "gnc/command", on_command)
-    pub_actuators = node.create_publisher(ActuatorCommand, "control/actuators", state_qos)
-    pub_status = node.create_publisher(VehicleStatus, "vehicle/status", latched)
-    pub_stats = node.create_publisher(ExecutorStats, "gnc/executor_stats", stats_qos)
-    pub_schedule = node.create_publisher(ScheduleTable, "gnc/schedule", latched)
-    drainer.adopt_node_services()  # parameter services too: no executor spins this node
+    # ----------------------------------------------------------------- executive phases and tasks
+    def input_phase(self, k: int) -> None:
+        self.drainer.drain()  # take what is queued, never wait (c4d_ros.drain)
+        self.core.inputs.now = self.clock_s()
 
-    last_status: dict[str, object] = {"key": None, "time": 0.0, "arm_ns": 0, "armed": False}
+    def latch(self, k: int) -> None:
+        self.core.latch()
 
-    def input_phase(k: int) -> None:
-        drainer.drain()  # take what is queued, never wait (see ros_drain.py)
-        core.inputs.now = clock_s()
+    def output_phase(self, k: int) -> None:
+        self.pub_actuators.publish(conv.actuator_msg(self.core.out, self.core.inputs.now, k))
 
-    def status_task(k: int) -> None:
-        out, now = core.out, core.inputs.now
-        if out.armed and not last_status["armed"]:
-            last_status["arm_ns"] = int(now * 1e9)
-        last_status["armed"] = out.armed
-        key = (out.armed, out.mode, out.nav, out.landed)
-        if key != last_status["key"] or now - float(last_status["time"]) >= STATUS_PERIOD_S:
-            pub_status.publish(conv.status_msg(out, now, int(last_status["arm_ns"])))
-            last_status["key"], last_status["time"] = key, now
+    def status_task(self, k: int) -> None:
+        out, now = self.core.out, self.core.inputs.now
+        if self.status.due(out, now):
+            self.pub_status.publish(conv.status_msg(out, now, self.status.arm_time_ns))
         for event in out.events:
-            node.get_logger().info(f"event: {event}")
+            self.log.info(f"event: {event}")
         out.events.clear()
 
-    def output_phase(k: int) -> None:
-        pub_actuators.publish(conv.actuator_msg(core.out, core.inputs.now, k))
-
-    def on_report(report) -> None:
-        pub_stats.publish(conv.stats_msg(report, clock_s()))
-        node.get_logger().info(
+    def on_report(self, report: ExecutorReport) -> None:
+        self.pub_stats.publish(conv.stats_msg(report, self.clock_s()))
+        self.log.info(
             f"{report.ticks} ticks, load mean {report.load_mean_percent:.1f} % max {report.load_max_percent:.1f} %, "
             f"jitter p99 {report.release_jitter_p99_us:.0f} µs, overruns {report.overruns_total}, "
             f"skipped {report.skipped_ticks_total}, CPU {report.cpu_percent:.0f} %")
-        if log_table:
-            node.get_logger().info("\n" + format_table(report))
+        if self.params.log_table:
+            self.log.info("\n" + format_table(report))
 
-    functions = {}
-    for task in schedule.tasks:
-        if task.name == "status":
-            functions[task.name] = status_task
-        else:
-            fn, dt = core.task_functions()[task.name], task.divider * schedule.tick_us / 1e6
-            functions[task.name] = lambda k, fn=fn, dt=dt: fn(dt)
-    executive = CyclicExecutive(schedule, functions, MonotonicClock(), name=cfg.executive_name, input_phase=input_phase,
-                                latch=lambda k: core.latch(), output_phase=output_phase,
-                                report_period_s=cfg.report_period_s, on_report=on_report, manage_gc=True)
+    # ----------------------------------------------------------------- run and stop
+    def run(self) -> int:
+        """Run the executive until SIGINT/SIGTERM, then command the motors to zero; returns 0."""
+        signal.signal(signal.SIGINT, self._stop)
+        signal.signal(signal.SIGTERM, self._stop)
+        self._apply_rt_priority()
+        schedule = self.cfg.schedule
+        self.pub_schedule.publish(conv.schedule_msg(schedule, self.cfg.executive_name, self.clock_s()))
+        self.input_phase(0)  # warm-up outside the timed loop: first-call costs must not count as an overrun
+        self.output_phase(0)
+        variant = f" ({schedule.order_variant})" if schedule.order_variant else ""
+        self.log.info(
+            f"{self.cfg.executive_name}: {1e6 / schedule.tick_us:.0f} Hz, {len(schedule.tasks)} tasks, phases by "
+            f"{schedule.method}{variant}, max tick load {schedule.max_tick_load_us} µs of {schedule.tick_us}; "
+            f"{schedule.certificate_reason}; airframe {self.cfg.airframe.name}")
+        try:
+            self.executive.run()
+        finally:
+            self._motors_to_zero()
+        return 0
 
-    def stop(signum, frame) -> None:
-        executive.stop()
+    def _stop(self, signum, frame) -> None:
+        self.executive.stop()
 
-    signal.signal(signal.SIGINT, stop)
-    signal.signal(signal.SIGTERM, stop)
-    if rt_priority > 0:
+    def _apply_rt_priority(self) -> None:
+        priority = self.params.rt_priority
+        if priority <= 0:
+            return
         try:  # real-time FIFO scheduling: the executive preempts the rest of the graph on wake-up
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
-            node.get_logger().info(f"SCHED_FIFO priority {rt_priority}")
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+            self.log.info(f"SCHED_FIFO priority {priority}")
         except (PermissionError, OSError) as exc:
-            node.get_logger().warning(f"rt_priority {rt_priority} not applied ({exc}); running with normal priority")
-    pub_schedule.publish(conv.schedule_msg(schedule, cfg.executive_name, clock_s()))
-    input_phase(0)  # warm-up outside the timed loop: first-call costs must not count as an overrun
-    output_phase(0)
-    node.get_logger().info(
-        f"{cfg.executive_name}: {1e6 / schedule.tick_us:.0f} Hz, {len(schedule.tasks)} tasks, phases by "
-        f"{schedule.method}{' (' + schedule.order_variant + ')' if schedule.order_variant else ''}, max tick load "
-        f"{schedule.max_tick_load_us} µs of {schedule.tick_us}; {schedule.certificate_reason}; airframe {cfg.airframe.name}")
-    try:
-        executive.run()
-    finally:
-        core.out.armed = False  # motors to zero first, then tear down
-        core.out.commands = tuple(0.0 for _ in core.out.commands)
-        now = clock_s()
-        pub_actuators.publish(conv.actuator_msg(core.out, now, executive.tick))
-        pub_status.publish(conv.status_msg(core.out, now, int(last_status["arm_ns"])))
+            self.log.warning(f"rt_priority {priority} not applied ({exc}); running with normal priority")
+
+    def _motors_to_zero(self) -> None:
+        out = self.core.out
+        out.armed = False  # motors to zero first, then tear down
+        out.commands = tuple(0.0 for _ in out.commands)
+        now = self.clock_s()
+        self.pub_actuators.publish(conv.actuator_msg(out, now, self.executive.tick))
+        self.pub_status.publish(conv.status_msg(out, now, self.status.arm_time_ns))
         time.sleep(0.2)  # let the last messages leave
-        node.get_logger().info("stopped: motors commanded to zero")
+        self.log.info("stopped: motors commanded to zero")
+
+
+def main(argv: list[str] | None = None) -> int:
+    rclpy = node_runtime.init(argv)
+    node = rclpy.create_node(NAME)
+    try:
+        params = CoreParams(**declare_all(node, PARAMS))
+        cfg = params.load_config()
+    except (ParameterError, CoreConfigError) as exc:
+        return node_runtime.fail(NAME, str(exc), node)
+    try:
+        return CoreNode(node, cfg, params).run()
+    finally:
         node.destroy_node()
         rclpy.try_shutdown()
-    return 0
 
 
 if __name__ == "__main__":

@@ -5,117 +5,143 @@ counts NaN / out-of-range samples (they are never republished), applies the IMU 
 and republishes each accepted sample unchanged in time on perception/{imu,gps,baro,mag,
 range_down}. Publishes perception/health (diagnostic_msgs/DiagnosticArray, 5 Hz): one status
 per sensor with its state (ok, stale, frozen, invalid, low rate), measured rate, counts, age.
-Parameters: gyro_offset, accel_offset, accel_scale (calibration, 3 values each),
-events_executor (default true).
+Topic names and QoS: c4d_ros.manifest. Parameters: PARAMS below (all read-only).
 """
 
 from __future__ import annotations
 
 import math
 import sys
+from dataclasses import dataclass
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
+
+from c4d_ros import node_runtime
+from c4d_ros.manifest import BARO, GPS, IMU, MAG, P_BARO, P_GPS, P_HEALTH, P_IMU, P_MAG, P_RANGE_DOWN, RANGE_DOWN, Topic
+from c4d_ros.params import ParameterError, Spec, declare_all
 
 from .perception import Health, ImuCalibration, SensorMonitor, valid_fix, valid_imu, valid_mag, valid_pressure, valid_range
 
-SENSORS = {  # name: (expected rate Hz, timeout s)
-    "imu": (500.0, 0.05),
-    "gps": (10.0, 1.0),
-    "baro": (50.0, 0.5),
-    "mag": (50.0, 0.5),
-    "range_down": (50.0, 0.5),
+NAME = "perception"
+PARAMS = {
+    "gyro_offset": Spec([0.0, 0.0, 0.0], "gyro bias removed from each sample, x y z [rad/s]", read_only=True),
+    "accel_offset": Spec([0.0, 0.0, 0.0], "accelerometer bias removed from each sample, x y z [m/s²]", read_only=True),
+    "accel_scale": Spec([1.0, 1.0, 1.0], "accelerometer scale factors applied after the bias, x y z [-]", read_only=True),
+    "events_executor": Spec(True, "spin with rclpy's EventsExecutor (less CPU) instead of the default executor [bool]",
+                            read_only=True),
 }
+HEALTH_PERIOD_S = 0.2  # 5 Hz: also the heartbeat health watches
+LEVELS = {Health.OK: DiagnosticStatus.OK, Health.LOW_RATE: DiagnosticStatus.WARN,
+          Health.WAITING: DiagnosticStatus.STALE, Health.STALE: DiagnosticStatus.STALE,
+          Health.FROZEN: DiagnosticStatus.ERROR, Health.INVALID: DiagnosticStatus.ERROR}
 
 
-def main(argv: list[str] | None = None) -> int:
-    from c4d_ros import node_runtime
+@dataclass(frozen=True)
+class Stream:
+    """One sensor stream: raw topic in, conditioned topic out, expected rate and silence timeout."""
 
-    rclpy = node_runtime.init(argv)
-    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
+    name: str
+    raw: Topic
+    conditioned: Topic
+    msg_type: type
+    rate_hz: float
+    timeout_s: float
 
-    node = rclpy.create_node("perception")
-    try:
-        def vec3(name, default):
-            value = list(node.declare_parameter(name, default).value)
-            if len(value) != 3:
-                raise ValueError(f"parameter '{name}' needs 3 values")
-            return tuple(float(v) for v in value)
 
-        calibration = ImuCalibration(vec3("gyro_offset", [0.0, 0.0, 0.0]), vec3("accel_offset", [0.0, 0.0, 0.0]),
-                                     vec3("accel_scale", [1.0, 1.0, 1.0]))
-        events = bool(node.declare_parameter("events_executor", True).value)
-    except ValueError as exc:
-        return node_runtime.fail("perception", str(exc), node)
+STREAMS = (
+    Stream("imu", IMU, P_IMU, Imu, 500.0, 0.05),
+    Stream("gps", GPS, P_GPS, NavSatFix, 10.0, 1.0),
+    Stream("baro", BARO, P_BARO, FluidPressure, 50.0, 0.5),
+    Stream("mag", MAG, P_MAG, MagneticField, 50.0, 0.5),
+    Stream("range_down", RANGE_DOWN, P_RANGE_DOWN, Range, 50.0, 0.5),
+)
 
-    qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
-    monitors = {name: SensorMonitor(name, rate, timeout) for name, (rate, timeout) in SENSORS.items()}
-    pubs = {
-        "imu": node.create_publisher(Imu, "perception/imu", qos),
-        "gps": node.create_publisher(NavSatFix, "perception/gps", qos),
-        "baro": node.create_publisher(FluidPressure, "perception/baro", qos),
-        "mag": node.create_publisher(MagneticField, "perception/mag", qos),
-        "range_down": node.create_publisher(Range, "perception/range_down", qos),
-    }
-    pub_health = node.create_publisher(DiagnosticArray, "perception/health", 10)
 
-    def now() -> float:
-        return node.get_clock().now().nanoseconds * 1e-9
+def calibration_from(params: dict[str, object]) -> ImuCalibration:
+    """The IMU calibration of the three vector parameters; ParameterError unless each has 3 values."""
+    vectors = []
+    for name in ("gyro_offset", "accel_offset", "accel_scale"):
+        value = list(params[name])  # type: ignore[call-overload]
+        if len(value) != 3:
+            raise ParameterError(f"parameter '{name}' needs 3 values")
+        vectors.append(tuple(float(v) for v in value))
+    return ImuCalibration(*vectors)
 
-    def on_imu(msg: Imu) -> None:
+
+class PerceptionNode:
+    """Maps each raw sensor topic through its SensorMonitor onto the conditioned topic and
+    publishes the monitors' health."""
+
+    def __init__(self, node, calibration: ImuCalibration) -> None:
+        self.node, self.calibration, self.clock = node, calibration, node.get_clock()
+        self.monitors = {s.name: SensorMonitor(s.name, s.rate_hz, s.timeout_s) for s in STREAMS}
+        self.pubs = {s.name: node.create_publisher(s.msg_type, s.conditioned.name, s.conditioned.qos) for s in STREAMS}
+        self.pub_health = node.create_publisher(DiagnosticArray, P_HEALTH.name, P_HEALTH.qos)
+        handlers = {"imu": self.on_imu, "gps": self.on_gps, "baro": self.on_baro, "mag": self.on_mag,
+                    "range_down": self.on_range}
+        for s in STREAMS:
+            node.create_subscription(s.msg_type, s.raw.name, handlers[s.name], s.raw.qos)
+        node.create_timer(HEALTH_PERIOD_S, self.publish_health)
+
+    def now(self) -> float:
+        return self.clock.now().nanoseconds * 1e-9
+
+    def on_imu(self, msg: Imu) -> None:
         w, a = msg.angular_velocity, msg.linear_acceleration
         gyro, accel = (w.x, w.y, w.z), (a.x, a.y, a.z)
-        if monitors["imu"].accept(now(), gyro + accel, valid_imu(gyro, accel)):
-            gyro, accel = calibration.apply(gyro, accel)
+        if self.monitors["imu"].accept(self.now(), gyro + accel, valid_imu(gyro, accel)):
+            gyro, accel = self.calibration.apply(gyro, accel)
             msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = gyro
             msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = accel
-            pubs["imu"].publish(msg)
+            self.pubs["imu"].publish(msg)
 
-    def on_gps(msg: NavSatFix) -> None:
+    def on_gps(self, msg: NavSatFix) -> None:
         ok = valid_fix(msg.latitude, msg.longitude, msg.altitude, msg.status.status >= NavSatStatus.STATUS_FIX)
-        if monitors["gps"].accept(now(), (msg.latitude, msg.longitude, msg.altitude), ok):
-            pubs["gps"].publish(msg)
+        if self.monitors["gps"].accept(self.now(), (msg.latitude, msg.longitude, msg.altitude), ok):
+            self.pubs["gps"].publish(msg)
 
-    def on_baro(msg: FluidPressure) -> None:
-        if monitors["baro"].accept(now(), (msg.fluid_pressure,), valid_pressure(msg.fluid_pressure)):
-            pubs["baro"].publish(msg)
+    def on_baro(self, msg: FluidPressure) -> None:
+        if self.monitors["baro"].accept(self.now(), (msg.fluid_pressure,), valid_pressure(msg.fluid_pressure)):
+            self.pubs["baro"].publish(msg)
 
-    def on_mag(msg: MagneticField) -> None:
+    def on_mag(self, msg: MagneticField) -> None:
         f = msg.magnetic_field
         values = (f.x, f.y, f.z)
-        if monitors["mag"].accept(now(), values, valid_mag(values)):
-            pubs["mag"].publish(msg)
+        if self.monitors["mag"].accept(self.now(), values, valid_mag(values)):
+            self.pubs["mag"].publish(msg)
 
-    def on_range(msg: Range) -> None:
-        if monitors["range_down"].accept(now(), (msg.range,), valid_range(msg.range), can_freeze=math.isfinite(msg.range)):
-            pubs["range_down"].publish(msg)
+    def on_range(self, msg: Range) -> None:
+        finite = math.isfinite(msg.range)
+        if self.monitors["range_down"].accept(self.now(), (msg.range,), valid_range(msg.range), can_freeze=finite):
+            self.pubs["range_down"].publish(msg)
 
-    node.create_subscription(Imu, "sensors/imu", on_imu, qos)
-    node.create_subscription(NavSatFix, "sensors/gps", on_gps, qos)
-    node.create_subscription(FluidPressure, "sensors/baro", on_baro, qos)
-    node.create_subscription(MagneticField, "sensors/mag", on_mag, qos)
-    node.create_subscription(Range, "sensors/range_down", on_range, qos)
-
-    levels = {Health.OK: DiagnosticStatus.OK, Health.LOW_RATE: DiagnosticStatus.WARN,
-              Health.WAITING: DiagnosticStatus.STALE, Health.STALE: DiagnosticStatus.STALE,
-              Health.FROZEN: DiagnosticStatus.ERROR, Health.INVALID: DiagnosticStatus.ERROR}
-
-    def publish_health() -> None:
-        t = now()
+    def publish_health(self) -> None:
+        stamp = self.clock.now()
+        t = stamp.nanoseconds * 1e-9
         array = DiagnosticArray()
-        array.header.stamp = node.get_clock().now().to_msg()
-        for name, m in monitors.items():
+        array.header.stamp = stamp.to_msg()
+        for name, m in self.monitors.items():
             state = m.health(t)
-            status = DiagnosticStatus(level=levels[state], name=f"perception/{name}", message=state.value,
-                                      hardware_id=name)
+            status = DiagnosticStatus(level=LEVELS[state], name=f"perception/{name}", message=state.value, hardware_id=name)
             age = t - m.last_time if m.accepted else -1.0
             status.values = [KeyValue(key="state", value=state.name), KeyValue(key="rate_hz", value=f"{m.rate():.1f}"),
                              KeyValue(key="accepted", value=str(m.accepted)), KeyValue(key="rejected", value=str(m.rejected)),
                              KeyValue(key="age_s", value=f"{age:.3f}")]
             array.status.append(status)
-        pub_health.publish(array)
+        self.pub_health.publish(array)
 
-    node.create_timer(0.2, publish_health)  # 5 Hz: also the heartbeat health watches
-    return node_runtime.spin_node(node, events)
+
+def main(argv: list[str] | None = None) -> int:
+    rclpy = node_runtime.init(argv)
+    node = rclpy.create_node(NAME)
+    try:
+        params = declare_all(node, PARAMS)
+        calibration = calibration_from(params)
+    except ParameterError as exc:
+        return node_runtime.fail(NAME, str(exc), node)
+    PerceptionNode(node, calibration)
+    return node_runtime.spin_node(node, bool(params["events_executor"]))
 
 
 if __name__ == "__main__":

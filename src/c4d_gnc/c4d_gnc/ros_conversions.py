@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+from c4d_common.vehicle import FailsafeAction
 from c4d_interfaces.msg import (
     ActuatorCommand,
     ExecutorStats,
@@ -66,14 +67,15 @@ def actuator_msg(out: Outputs, now: float, tick: int) -> ActuatorCommand:
     return msg
 
 
-def status_msg(out: Outputs, now: float, arm_time_ns: int, failsafe: tuple[int, str] = (0, "")) -> VehicleStatus:
+def status_msg(out: Outputs, now: float, arm_time_ns: int,
+               failsafe: tuple[int, str] = (FailsafeAction.NONE, "")) -> VehicleStatus:
     msg = VehicleStatus()
     msg.header.stamp = s_to_stamp(now)
     msg.armed = out.armed
     msg.flight_mode = int(out.mode)
     msg.nav_state = int(out.nav)
     msg.landed_state = int(out.landed)
-    msg.failsafe_action, msg.failsafe_reason = failsafe
+    msg.failsafe_action, msg.failsafe_reason = int(failsafe[0]), failsafe[1]
     msg.arm_time_ns = arm_time_ns
     return msg
 
