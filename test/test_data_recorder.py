@@ -180,3 +180,10 @@ def test_bad_arguments(ros_env, argv):
                             env=ros_env, timeout=60)
     assert result.returncode == 2, result.stderr
     assert "error" in result.stderr.splitlines()[-1] and "Traceback" not in result.stderr
+
+
+def test_out_of_range_parameter_exits_2_with_one_line_naming_it(ros_env, tmp_path):
+    result = subprocess.run([installed_executable("c4d_data", "recorder"), "--ros-args", "-p", f"output_dir:={tmp_path}",
+                             "-p", "queue_depth:=0"], capture_output=True, text=True, env=ros_env, timeout=60)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.splitlines() == ["recorder: error: parameter 'queue_depth': 0 is outside [1, 1e+06]"], result.stderr

@@ -4,6 +4,7 @@ perception health flag (real DDS between real processes); bad samples never pass
 from __future__ import annotations
 
 import math
+import subprocess
 import time
 
 import pytest
@@ -89,6 +90,13 @@ def test_each_fault_raises_its_health_flag(ros, processes):
     future = client.call_async(SetParameters.Request(parameters=[
         Parameter("fault.motor_health", value=[1.0, 2.0]).to_parameter_msg()]))
     assert spin_until(executor, future.done, 10) and not future.result().results[0].successful
+
+
+def test_out_of_range_fault_start_value_exits_2_with_one_line_naming_it(ros_env):
+    result = subprocess.run([installed_executable("c4d_sim", "sim"), "--ros-args", "-p", "fault.battery_drain_factor:=-1.0"],
+                            capture_output=True, text=True, env=ros_env, timeout=60)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.splitlines() == ["sim: error: parameter 'fault.battery_drain_factor': -1.0 is outside [0, 1e+06]"]
 
 
 def test_nan_and_out_of_range_samples_are_rejected_and_counted(ros, processes):

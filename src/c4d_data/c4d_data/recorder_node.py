@@ -16,15 +16,50 @@ from __future__ import annotations
 
 import importlib
 import os
-import re
 import signal
 import sys
 import time
-from pathlib import Path
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from std_srvs.srv import Trigger
+
+from c4d_interfaces.msg import VehicleStatus
+from c4d_ros import manifest
+from c4d_ros.drain import Drainer
+from c4d_ros.params import ParameterError, Spec, declare_all
 
 from .msgdef import DefinitionCache, DefinitionError
 from .qos import TRANSIENT_LOCAL, profile_dict, request_for_offers
-from .recording import IDLE, Recorder, RecorderConfig, TopicInfo
+from .recorder_settings import COMPRESSIONS, RecorderSettings
+from .recording import IDLE, Recorder, TopicInfo
+
+PARAMETERS: dict[str, Spec] = {  # all read once at start: a change needs a restart
+    "output_dir": Spec("flights", "directory of the flight files, created if missing [path]", read_only=True),
+    "prefix": Spec("flight", "file name prefix: <prefix>_<UTC start>.mcap [text]", read_only=True),
+    "include": Spec([""], "regular expressions on fully qualified topic names to record; empty = every topic [regex]",
+                    read_only=True),
+    "exclude": Spec([""], "regular expressions of topics never recorded [regex]", read_only=True),
+    "auto_arm": Spec(True, "start a file on the arm edge of status_topic, end it on the disarm edge [bool]", read_only=True),
+    "status_topic": Spec(manifest.STATUS.name, "c4d_interfaces/VehicleStatus topic whose arm edges start and end files "
+                                               "[topic]", read_only=True),
+    "pre_roll_s": Spec(1.0, "keep samples received this long before the arm edge [s]", 0.0, 60.0, True),
+    "post_roll_s": Spec(1.0, "and this long after the disarm edge [s]", 0.0, 60.0, True),
+    "max_queue_messages": Spec(200000, "writer queue bound; beyond it samples are dropped and counted [messages]",
+                               1, 100_000_000, True),
+    "max_queue_bytes": Spec(256 << 20, "writer queue bound [bytes]", 1, 1 << 40, True),
+    "chunk_size": Spec(1 << 20, "MCAP chunk size; a crash loses at most the open chunk [bytes]", 1, 1 << 30, True),
+    "max_chunk_age_s": Spec(1.0, "a chunk is written at the latest this long after its first message [s]", 0.0, 3600.0, True),
+    "compression": Spec("zstd", f"chunk compression: {' | '.join(COMPRESSIONS)} [name]", read_only=True),
+    "fsync": Spec(False, "fsync after each chunk (power-loss safety; costs I/O) [bool]", read_only=True),
+    "queue_depth": Spec(5000, "DDS history depth of each subscription (keep last): backlog a slow drain absorbs [messages]",
+                        1, 1_000_000, True),
+    "discovery_period_s": Spec(0.5, "new topics are picked up this often [s]", 0.0, 60.0, True),
+    "drain_period_s": Spec(0.005, "subscriptions are drained this often [s]", 1e-4, 1.0, True),
+    "niceness": Spec(5, "CPU priority below the flight-critical nodes (nice increment) [nice]", 0, 19, True),
+}
 
 
 def message_class(type_name: str):
@@ -36,104 +71,92 @@ def message_class(type_name: str):
         return None
 
 
-def main(argv: list[str] | None = None) -> int:
-    from c4d_ros import node_runtime
-    from c4d_ros.drain import Drainer
+def read_settings(node) -> RecorderSettings:
+    """Declared parameters -> validated settings (output directory created); ValueError / OSError."""
+    settings = RecorderSettings.from_parameters(declare_all(node, PARAMETERS))
+    settings.make_output_dir()
+    return settings
 
-    rclpy = node_runtime.init(argv)
-    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-    from rclpy.serialization import deserialize_message
-    from std_srvs.srv import Trigger
 
-    from c4d_interfaces.msg import VehicleStatus
+class RecorderNode:
+    """The recorder's ROS face: discovers topics, subscribes raw with the QoS matching their
+    publishers, drains them with non-blocking takes into `recording.Recorder`, feeds it the armed
+    flag of the status topic, serves recorder/start and recorder/stop and publishes recorder/status."""
 
-    node = rclpy.create_node("recorder")
-    p = {name: node.declare_parameter(name, default).value for name, default in (
-        ("output_dir", "flights"), ("prefix", "flight"), ("include", [""]), ("exclude", [""]),
-        ("auto_arm", True), ("status_topic", "vehicle/status"), ("pre_roll_s", 1.0), ("post_roll_s", 1.0),
-        ("max_queue_messages", 200000), ("max_queue_bytes", 256 << 20), ("chunk_size", 1 << 20),
-        ("max_chunk_age_s", 1.0), ("compression", "zstd"), ("fsync", False), ("queue_depth", 5000),
-        ("discovery_period_s", 0.5), ("drain_period_s", 0.005), ("niceness", 5))}
-    try:
-        include = [re.compile(x) for x in p["include"] if x]
-        exclude = [re.compile(x) for x in p["exclude"] if x]
-        if p["compression"] not in ("zstd", "lz4", "none"):
-            raise ValueError(f"compression must be zstd, lz4 or none, not {p['compression']!r}")
-        if p["queue_depth"] < 1 or p["max_queue_messages"] < 1 or p["drain_period_s"] <= 0:
-            raise ValueError("queue_depth, max_queue_messages and drain_period_s must be positive")
-        output_dir = Path(p["output_dir"]).expanduser()
-        output_dir.mkdir(parents=True, exist_ok=True)
-        if not os.access(output_dir, os.W_OK):
-            raise ValueError(f"output_dir {output_dir} is not writable")
-    except (re.error, ValueError, OSError) as exc:
-        return node_runtime.fail("recorder", str(exc), node)
-    if p["niceness"]:
-        os.nice(int(p["niceness"]))
-    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a file-size limit must surface as EFBIG, not kill us
-    logger = node.get_logger()
+    def __init__(self, node, settings: RecorderSettings) -> None:
+        if settings.niceness:  # before the writer thread starts: it inherits the priority
+            os.nice(settings.niceness)
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a file-size limit must surface as EFBIG, not kill us
+        self.node, self.settings = node, settings
+        self.logger = node.get_logger()
+        self.recorder = Recorder(settings.recording, self.log)
+        self.definitions = DefinitionCache()
+        self.status_topic = node.resolve_topic_name(settings.status_topic)
+        self.subscriptions: dict[str, Any] = {}  # topic -> raw subscription
+        self.recorded: set[str] = set()
+        self.ignored: set[str] = set()
+        self.drainer = Drainer(node)
+        self.drainer.service(Trigger, manifest.RECORDER_START.name, self.on_start)
+        self.drainer.service(Trigger, manifest.RECORDER_STOP.name, self.on_stop)
+        self.pub_status = node.create_publisher(DiagnosticStatus, manifest.RECORDER_STATUS.name, manifest.RECORDER_STATUS.qos)
+        self.last_status: dict[str, Any] | None = None  # as last published
+        self.last_status_time = 0.0  # [s] monotonic
+        self.stopping = False
 
-    def log(level: str, text: str) -> None:  # one call site per severity (rclpy's logger insists)
+    def log(self, level: str, text: str) -> None:  # one call site per severity (rclpy's logger insists)
         if level == "info":
-            logger.info(text)
+            self.logger.info(text)
         elif level == "warn":
-            logger.warning(text)
+            self.logger.warning(text)
         else:
-            logger.error(text)
+            self.logger.error(text)
             print(f"recorder: error: {text}", file=sys.stderr, flush=True)
 
-    config = RecorderConfig(output_dir, p["prefix"], p["pre_roll_s"], p["post_roll_s"], p["max_queue_messages"],
-                            p["max_queue_bytes"], p["chunk_size"], p["max_chunk_age_s"], p["compression"], p["fsync"])
-    recorder = Recorder(config, log)
-    definitions = DefinitionCache()
-    status_topic = node.resolve_topic_name(p["status_topic"])
-    subs: dict[str, object] = {}  # topic -> subscription
-    recorded: set[str] = set()
-    ignored: set[str] = set()
-
-    def wanted(name: str) -> bool:
-        return (not include or any(r.search(name) for r in include)) and not any(r.search(name) for r in exclude)
-
-    def discover() -> None:
-        for name, types in node.get_topic_names_and_types():
-            if name in subs or name in ignored:
+    def discover(self) -> None:
+        """Subscribe to every new topic that is recorded (or is the status topic) and has a publisher."""
+        for name, types in self.node.get_topic_names_and_types():
+            if name in self.subscriptions or name in self.ignored:
                 continue
-            record = wanted(name)
-            if not record and name != status_topic:
-                ignored.add(name)
+            record = self.settings.wants(name)
+            if not record and name != self.status_topic:
+                self.ignored.add(name)
                 continue
-            offers = [i for i in node.get_publishers_info_by_topic(name)]
+            offers = list(self.node.get_publishers_info_by_topic(name))
             if not offers:
                 continue  # QoS is chosen from the publishers: wait for one
             if len(types) != 1:
-                log("warn", f"topic {name} has several types {types}: not recorded")
-                ignored.add(name)
+                self.log("warn", f"topic {name} has several types {types}: not recorded")
+                self.ignored.add(name)
                 continue
             cls = message_class(types[0])
             if cls is None:
-                log("warn", f"topic {name}: type {types[0]} is not installed here: not recorded")
-                ignored.add(name)
+                self.log("warn", f"topic {name}: type {types[0]} is not installed here: not recorded")
+                self.ignored.add(name)
                 continue
-            profiles = [i.qos_profile for i in offers]
-            reliability, durability = request_for_offers(profiles)
-            if record:
-                try:
-                    definition = definitions.get(types[0])
-                except DefinitionError as exc:
-                    log("warn", f"topic {name}: {exc}: not recorded")
-                    record = False
-                else:
-                    recorder.add_topic(TopicInfo(name, types[0], definition, [profile_dict(q) for q in profiles],
-                                                 str(offers[0].topic_type_hash), durability == TRANSIENT_LOCAL))
-                    recorded.add(name)
-            qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p["queue_depth"],
-                             reliability=ReliabilityPolicy(reliability), durability=DurabilityPolicy(durability))
-            subs[name] = node.create_subscription(cls, name, lambda _: None, qos, raw=True)
+            self.subscribe(name, types[0], cls, offers, record)
 
-    def drain() -> None:
-        for name, sub in subs.items():
+    def subscribe(self, name: str, type_name: str, cls: Any, offers: list[Any], record: bool) -> None:
+        profiles = [i.qos_profile for i in offers]
+        reliability, durability = request_for_offers(profiles)
+        if record:
+            try:
+                definition = self.definitions.get(type_name)
+            except DefinitionError as exc:
+                self.log("warn", f"topic {name}: {exc}: not recorded")
+            else:
+                self.recorder.add_topic(TopicInfo(name, type_name, definition, [profile_dict(q) for q in profiles],
+                                                  str(offers[0].topic_type_hash), durability == TRANSIENT_LOCAL))
+                self.recorded.add(name)
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=self.settings.queue_depth,
+                         reliability=ReliabilityPolicy(reliability), durability=DurabilityPolicy(durability))
+        self.subscriptions[name] = self.node.create_subscription(cls, name, lambda _: None, qos, raw=True)
+
+    def drain(self) -> None:
+        """Take everything queued on every subscription (never waits) into the recorder."""
+        recorder, auto_arm = self.recorder, self.settings.auto_arm
+        for name, sub in self.subscriptions.items():
             handle, msg_type = sub.handle, sub.msg_type
-            is_status, is_recorded = name == status_topic, name in recorded
+            is_status, is_recorded = name == self.status_topic, name in self.recorded
             while True:
                 with handle:
                     taken = handle.take_message(msg_type, True)
@@ -141,60 +164,82 @@ def main(argv: list[str] | None = None) -> int:
                     break
                 data, info = taken
                 recv = info["received_timestamp"] or time.time_ns()
-                if is_status and p["auto_arm"]:
+                if is_status and auto_arm:
                     recorder.on_armed(deserialize_message(data, VehicleStatus).armed, recv)
                 if is_recorded:
                     recorder.on_message(name, data, recv, info["source_timestamp"] or recv,
                                         info["publication_sequence_number"] or 0)
 
-    def trigger(action):
-        def handle(request, response):
-            response.success, response.message = action("service")
-            publish_status()
-            return response
-        return handle
+    def on_start(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        response.success, response.message = self.recorder.start("service")
+        self.publish_status()
+        return response
 
-    drainer = Drainer(node)
-    drainer.service(Trigger, "recorder/start", trigger(recorder.start))
-    drainer.service(Trigger, "recorder/stop", trigger(recorder.stop))
-    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    pub_status = node.create_publisher(DiagnosticStatus, "recorder/status", latched)
-    last = {"status": None, "time": 0.0}
+    def on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        response.success, response.message = self.recorder.stop("service")
+        self.publish_status()
+        return response
 
-    def publish_status() -> None:
-        s = recorder.status()
+    def publish_status(self) -> None:
+        s = self.recorder.status()
         level = DiagnosticStatus.ERROR if s["error"] else DiagnosticStatus.WARN if s["dropped"] else DiagnosticStatus.OK
-        pub_status.publish(DiagnosticStatus(level=level, name="recorder", message=s["state"], hardware_id="c4d_data",
-                                            values=[KeyValue(key=k, value=str(v)) for k, v in s.items()]))
-        last["status"], last["time"] = s, time.monotonic()
+        self.pub_status.publish(DiagnosticStatus(level=level, name="recorder", message=s["state"], hardware_id="c4d_data",
+                                                 values=[KeyValue(key=k, value=str(v)) for k, v in s.items()]))
+        self.last_status, self.last_status_time = s, time.monotonic()
 
-    stopping: list[int] = []
-    signal.signal(signal.SIGINT, lambda *_: stopping.append(1))
-    signal.signal(signal.SIGTERM, lambda *_: stopping.append(1))
-    log("info", f"recording into {output_dir} ({'on arm/disarm of ' + status_topic if p['auto_arm'] else 'manual'})")
-    next_discovery = 0.0
+    def status_due(self, now: float) -> bool:
+        """1 Hz, and at once when the state, the file count or the error changed."""
+        if now - self.last_status_time >= 1.0:
+            return True
+        last = self.last_status
+        s = self.recorder.status()
+        return bool(last) and (s["state"], s["files"], s["error"]) != (last["state"], last["files"], last["error"])
+
+    def run(self) -> int:
+        """Discover, drain, poll until SIGINT/SIGTERM; close the file; 1 if a write failed, else 0."""
+        import rclpy
+
+        signal.signal(signal.SIGINT, self.stop)
+        signal.signal(signal.SIGTERM, self.stop)
+        settings = self.settings
+        self.log("info", f"recording into {settings.recording.output_dir} "
+                         f"({'on arm/disarm of ' + self.status_topic if settings.auto_arm else 'manual'})")
+        next_discovery = 0.0
+        try:
+            while not self.stopping and rclpy.ok():
+                now = time.monotonic()
+                if now >= next_discovery:
+                    self.discover()
+                    next_discovery = now + settings.discovery_period_s
+                self.drain()
+                self.drainer.drain()
+                self.recorder.poll()
+                if self.status_due(now):
+                    self.publish_status()
+                time.sleep(settings.drain_period_s)
+        finally:
+            self.drain()
+            self.recorder.shutdown()
+            if self.recorder.state == IDLE and self.last_status is not None:
+                self.publish_status()
+            self.node.destroy_node()
+            rclpy.try_shutdown()
+        return 1 if self.recorder.last_error else 0
+
+    def stop(self, signum: int, frame: Any) -> None:
+        self.stopping = True
+
+
+def main(argv: list[str] | None = None) -> int:
+    from c4d_ros import node_runtime
+
+    rclpy = node_runtime.init(argv)
+    node = rclpy.create_node("recorder")
     try:
-        while not stopping and rclpy.ok():
-            now = time.monotonic()
-            if now >= next_discovery:
-                discover()
-                next_discovery = now + p["discovery_period_s"]
-            drain()
-            drainer.drain()
-            recorder.poll()
-            s = recorder.status()
-            if now - last["time"] >= 1.0 or (last["status"] and (s["state"], s["files"], s["error"]) !=
-                                              (last["status"]["state"], last["status"]["files"], last["status"]["error"])):
-                publish_status()
-            time.sleep(p["drain_period_s"])
-    finally:
-        drain()
-        recorder.shutdown()
-        if recorder.state == IDLE and last["status"] is not None:
-            publish_status()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 1 if recorder.last_error else 0
+        recorder = RecorderNode(node, read_settings(node))
+    except (ParameterError, ValueError, OSError) as exc:
+        return node_runtime.fail("recorder", str(exc), node)
+    return recorder.run()
 
 
 if __name__ == "__main__":
