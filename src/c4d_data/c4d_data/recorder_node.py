@@ -14,7 +14,6 @@ Runs in its own process at a lower priority (`niceness`): it can drop (and count
 
 from __future__ import annotations
 
-import importlib
 import os
 import signal
 import sys
@@ -31,6 +30,7 @@ from c4d_ros import manifest
 from c4d_ros.drain import Drainer
 from c4d_ros.params import ParameterError, Spec, declare_all
 
+from .message_types import message_class
 from .msgdef import DefinitionCache, DefinitionError
 from .qos import TRANSIENT_LOCAL, profile_dict, request_for_offers
 from .recorder_settings import COMPRESSIONS, RecorderSettings
@@ -60,15 +60,6 @@ PARAMETERS: dict[str, Spec] = {  # all read once at start: a change needs a rest
     "drain_period_s": Spec(0.005, "subscriptions are drained this often [s]", 1e-4, 1.0, True),
     "niceness": Spec(5, "CPU priority below the flight-critical nodes (nice increment) [nice]", 0, 19, True),
 }
-
-
-def message_class(type_name: str):
-    """Python class of 'pkg/msg/Type', or None if that package is not installed."""
-    try:
-        package, namespace, name = type_name.split("/")
-        return getattr(importlib.import_module(f"{package}.{namespace}"), name)
-    except (ValueError, ImportError, AttributeError):
-        return None
 
 
 def read_settings(node) -> RecorderSettings:

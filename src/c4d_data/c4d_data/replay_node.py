@@ -15,11 +15,12 @@ import argparse
 import signal
 import sys
 import time
+from typing import Any
 
 import yaml
 
-from .bag_reader import BagError, iter_messages, open_bag
-from .recorder_node import message_class
+from .bag_reader import BagContents, BagError, iter_messages, open_bag
+from .message_types import message_class
 from .replay_timing import Clock, ReplayOptions, select_topics
 
 
@@ -59,6 +60,91 @@ def publisher_qos(offered: str):
                       durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
 
+class ReplayNode:
+    """Republishes a recording: one raw publisher per replayed topic with the QoS its original
+    publishers offered, each message at its log time mapped to wall time by `replay_timing.Clock`,
+    optionally /clock with the recording's time."""
+
+    def __init__(self, node, contents: BagContents, options: ReplayOptions) -> None:
+        self.node, self.contents, self.options = node, contents, options
+        self.publishers: dict[str, Any] = {}
+        for name in select_topics(list(contents.topics), options.include, options.exclude):
+            topic = contents.topics[name]
+            cls = message_class(topic.type_name)
+            if cls is None:
+                print(f"replay: warning: {name}: type {topic.type_name} is not installed here: skipped", file=sys.stderr)
+                continue
+            self.publishers[name] = node.create_publisher(cls, name, publisher_qos(topic.offered_qos))
+        self.clock_pub = None
+        if options.clock_hz:
+            from rosgraph_msgs.msg import Clock as ClockMsg
+
+            self.clock_pub = node.create_publisher(ClockMsg, "/clock", 10)
+        self.counts = dict.fromkeys(self.publishers, 0)
+        self.next_clock_ns = 0  # when /clock is published next (monotonic)
+        self.stopping = False
+
+    def stop(self, signum: int, frame: Any) -> None:
+        self.stopping = True
+
+    def play(self) -> None:
+        """Replay from the start offset to the end (again and again with --loop) until stopped."""
+        first = self.contents.start_ns + int(self.options.start_offset_s * 1e9)
+        while not self.stopping:
+            clock = Clock(first, time.monotonic_ns(), self.options.rate)
+            self.next_clock_ns = time.monotonic_ns()
+            for topic, message in iter_messages(self.contents, topics=list(self.publishers)):
+                if message.log_time < first:
+                    continue
+                self.wait_until(clock.due(message.log_time), clock)
+                if self.stopping:
+                    break
+                self.publishers[topic.name].publish(message.data)
+                self.counts[topic.name] += 1
+            if not self.options.loop:
+                break
+
+    def wait_until(self, due_ns: int, clock: Clock) -> None:
+        """Sleep until `due_ns` (monotonic), publishing /clock on the way when asked to."""
+        while not self.stopping:
+            now = time.monotonic_ns()
+            if self.clock_pub is not None and now >= self.next_clock_ns:
+                self.publish_clock(clock)
+                self.next_clock_ns += int(1e9 / self.options.clock_hz)
+            if now >= due_ns:
+                return
+            wait = min(due_ns, self.next_clock_ns if self.clock_pub is not None else due_ns) - now
+            time.sleep(max(0, min(wait, 50_000_000)) * 1e-9)
+
+    def publish_clock(self, clock: Clock) -> None:
+        from builtin_interfaces.msg import Time
+        from rosgraph_msgs.msg import Clock as ClockMsg
+
+        t = clock.log_time(time.monotonic_ns())
+        self.clock_pub.publish(ClockMsg(clock=Time(sec=t // 1_000_000_000, nanosec=t % 1_000_000_000)))
+
+    def run(self) -> int:
+        """Wait for subscribers to match, replay, report; 0 (2 on a damaged file, one line)."""
+        import rclpy
+
+        from c4d_ros import node_runtime
+
+        signal.signal(signal.SIGINT, self.stop)
+        signal.signal(signal.SIGTERM, self.stop)
+        time.sleep(self.options.delay_s)
+        started = time.monotonic()
+        try:
+            self.play()
+        except BagError as exc:
+            return node_runtime.fail("replay", str(exc), self.node)
+        elapsed = time.monotonic() - started
+        print(f"replay: {sum(self.counts.values())} messages on {len(self.counts)} topics in {elapsed:.1f} s", flush=True)
+        time.sleep(0.2)  # let reliable transports deliver the tail
+        self.node.destroy_node()
+        rclpy.try_shutdown()
+        return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     from c4d_ros import node_runtime
 
@@ -74,65 +160,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"replay: warning: {contents.problem}; replaying the complete part", file=sys.stderr)
     rclpy = node_runtime.init(["replay", *ros_args])
     node = rclpy.create_node("replay")
-    publishers = {}
-    for name in select_topics(list(contents.topics), options.include, options.exclude):
-        topic = contents.topics[name]
-        cls = message_class(topic.type_name)
-        if cls is None:
-            print(f"replay: warning: {name}: type {topic.type_name} is not installed here: skipped", file=sys.stderr)
-            continue
-        publishers[name] = node.create_publisher(cls, name, publisher_qos(topic.offered_qos))
-    if not publishers:
+    replay = ReplayNode(node, contents, options)
+    if not replay.publishers:
         return node_runtime.fail("replay", f"{path}: no topic to replay (selection empty or types not installed)", node)
-    clock_pub = None
-    if options.clock_hz:
-        from builtin_interfaces.msg import Time
-        from rosgraph_msgs.msg import Clock as ClockMsg
-
-        clock_pub = node.create_publisher(ClockMsg, "/clock", 10)
-    stopping: list[int] = []
-    signal.signal(signal.SIGINT, lambda *_: stopping.append(1))
-    signal.signal(signal.SIGTERM, lambda *_: stopping.append(1))
-    time.sleep(options.delay_s)
-    first = contents.start_ns + int(options.start_offset_s * 1e9)
-    counts = dict.fromkeys(publishers, 0)
-    started = time.monotonic()
-
-    def publish_clock(clock: Clock) -> None:
-        t = clock.log_time(time.monotonic_ns())
-        clock_pub.publish(ClockMsg(clock=Time(sec=t // 1_000_000_000, nanosec=t % 1_000_000_000)))
-
-    try:
-        while not stopping:
-            clock = Clock(first, time.monotonic_ns(), options.rate)
-            next_tick = time.monotonic_ns()
-            for topic, message in iter_messages(contents, topics=list(publishers)):
-                if message.log_time < first:
-                    continue
-                due = clock.due(message.log_time)
-                while not stopping:
-                    now = time.monotonic_ns()
-                    if clock_pub is not None and now >= next_tick:
-                        publish_clock(clock)
-                        next_tick += int(1e9 / options.clock_hz)
-                    if now >= due:
-                        break
-                    wait = min(due, next_tick if clock_pub is not None else due) - now
-                    time.sleep(max(0, min(wait, 50_000_000)) * 1e-9)
-                if stopping:
-                    break
-                publishers[topic.name].publish(message.data)
-                counts[topic.name] += 1
-            if not options.loop:
-                break
-    except BagError as exc:
-        return node_runtime.fail("replay", str(exc), node)
-    elapsed = time.monotonic() - started
-    print(f"replay: {sum(counts.values())} messages on {len(counts)} topics in {elapsed:.1f} s", flush=True)
-    time.sleep(0.2)  # let reliable transports deliver the tail
-    node.destroy_node()
-    rclpy.try_shutdown()
-    return 0
+    return replay.run()
 
 
 if __name__ == "__main__":
