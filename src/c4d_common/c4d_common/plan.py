@@ -80,7 +80,7 @@ class Plan:
         return replace(self, plan_id=plan_id)
 
 
-def _num(item: dict, key: str, where: str, default: float | None = None) -> float:
+def _num(item: dict[str, object], key: str, where: str, default: float | None = None) -> float:
     if key not in item:
         if default is None:
             raise PlanError(f"{where}: missing '{key}'")

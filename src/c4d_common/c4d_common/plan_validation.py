@@ -6,16 +6,23 @@ every leg (segment between consecutive positions, home → take-off → … → 
 geofence inclusion polygon (both ends inside and no crossing of a polygon edge); an endurance
 estimate (legs at the cruise speed in force, holds, climbs and descents) against the remaining
 flight time. A plan with any error is rejected as a whole; warnings do not reject.
+
+Every problem is a `PlanIssue` (kind, item, text): callers decide on the kind, people read the
+text (`str(issue)`), so no decision depends on a message's wording.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import Enum
 
 from .geodesy import GeoOrigin
-from .geofence import leg_inside
+from .geofence import LocalFence, leg_inside
 from .plan import GLOBAL, Geofence, Item, Plan
+
+__all__ = ["IssueKind", "PlanIssue", "ValidationResult", "VehicleLimits", "ceiling_of", "check_goto", "flight_time_left",
+           "leg_inside", "local_point", "validate"]
 
 MAX_ITEMS = 500
 DEFAULT_MAX_ALTITUDE = 120.0  # [m] above home, the usual open-category ceiling
@@ -31,19 +38,75 @@ class VehicleLimits:
     default_rtl_altitude: float = 15.0
 
 
+class IssueKind(Enum):
+    """What is wrong with a plan or a go-to target (the decision-relevant part of a PlanIssue)."""
+
+    NO_ITEMS = "no items"
+    TOO_MANY_ITEMS = "too many items"
+    TAKEOFF_ALTITUDE = "take-off altitude"
+    BEFORE_TAKEOFF = "before take-off"
+    NO_POSITION = "no finite position"  # the target itself is malformed: never forced
+    COORDINATES_OUT_OF_RANGE = "coordinates out of range"  # malformed too
+    ABOVE_CEILING = "above the ceiling"
+    BELOW_MINIMUM = "below the minimum altitude"
+    OUTSIDE_ALTITUDE_BAND = "outside the altitude band"
+    TOO_FAR = "too far from home"
+    LEAVES_POLYGON = "leaves the polygon"
+    SPEED = "speed above the vehicle's"
+    RTL_ALTITUDE = "RTL altitude above the ceiling"
+    ENDURANCE = "exceeds the endurance"
+    ENDURANCE_MARGIN = "uses most of the endurance"  # warning
+    ENDS_IN_AIR = "ends in the air"  # warning
+    NO_HOME = "no home position"  # acceptance: the estimator has no origin yet
+    MISSION_ACTIVE = "a mission is active"  # acceptance: the running plan cannot be replaced
+
+    @property
+    def malformed(self) -> bool:
+        """The request itself is unusable (a go-to's `force` cannot override it)."""
+        return self in (IssueKind.NO_POSITION, IssueKind.COORDINATES_OUT_OF_RANGE)
+
+
+@dataclass(frozen=True)
+class PlanIssue:
+    """One problem: `kind` for decisions, `item` (index, None for the whole plan), `text` for people."""
+
+    kind: IssueKind
+    item: int | None
+    text: str
+
+    def __str__(self) -> str:
+        return self.text
+
+
 @dataclass(frozen=True)
 class ValidationResult:
-    errors: tuple[str, ...]
-    warnings: tuple[str, ...]
+    issues: tuple[PlanIssue, ...]  # errors: any rejects the plan
+    notices: tuple[PlanIssue, ...]  # warnings: reported, the plan is accepted
     path_length: float  # [m] horizontal + vertical, home to home
     duration: float  # [s] estimated flight time
 
     @property
     def ok(self) -> bool:
-        return not self.errors
+        return not self.issues
+
+    @property
+    def errors(self) -> tuple[str, ...]:
+        return tuple(i.text for i in self.issues)
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        return tuple(i.text for i in self.notices)
 
 
-def local_point(item, home: GeoOrigin) -> tuple[float, float, float]:
+def flight_time_left(charge_ah: float, hover_current_a: float, reserve: float = 0.2) -> float | None:
+    """Flight time left [s] at hover current from the battery's remaining charge, keeping
+    `reserve` (a fraction) untouched; None when the charge is unknown."""
+    if not math.isfinite(charge_ah) or charge_ah <= 0 or hover_current_a <= 0:
+        return None
+    return charge_ah * (1.0 - reserve) / hover_current_a * 3600.0
+
+
+def local_point(item: Item, home: GeoOrigin) -> tuple[float, float, float]:
     if item.frame == GLOBAL:
         e, n, _ = home.to_enu(item.x, item.y, home.altitude)
         return e, n, item.z
@@ -52,15 +115,18 @@ def local_point(item, home: GeoOrigin) -> tuple[float, float, float]:
 
 def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(),
              endurance_s: float | None = None) -> ValidationResult:
-    errors: list[str] = []
-    warnings: list[str] = []
+    errors: list[PlanIssue] = []
+    warnings: list[PlanIssue] = []
+
+    def error(kind: IssueKind, item: int | None, text: str) -> None:
+        errors.append(PlanIssue(kind, item, text))
+
     if not plan.items:
-        errors.append("plan: no items")
+        error(IssueKind.NO_ITEMS, None, "plan: no items")
     if len(plan.items) > MAX_ITEMS:
-        errors.append(f"plan: {len(plan.items)} items exceed the limit of {MAX_ITEMS}")
-    fence = plan.geofence
-    ceiling = min(limits.max_altitude, fence.max_altitude) if fence.max_altitude > 0 else limits.max_altitude
-    polygon = [home.to_enu(lat, lon, home.altitude)[:2] for lat, lon in fence.polygon]
+        error(IssueKind.TOO_MANY_ITEMS, None, f"plan: {len(plan.items)} items exceed the limit of {MAX_ITEMS}")
+    fence = LocalFence.from_geofence(plan.geofence, home)
+    ceiling = ceiling_of(plan.geofence, limits)
     speed = plan.cruise_speed if plan.cruise_speed > 0 else limits.default_speed
     rtl_altitude = plan.rtl_altitude if plan.rtl_altitude > 0 else limits.default_rtl_altitude
     position = (0.0, 0.0, 0.0)
@@ -69,8 +135,8 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
 
     def fly_to(k: int, target: tuple[float, float, float]) -> None:
         nonlocal position, length, duration
-        if polygon and not leg_inside(position[:2], target[:2], polygon):
-            errors.append(f"item {k}: leg leaves the geofence polygon")
+        if not fence.leg_inside(position[:2], target[:2]):
+            error(IssueKind.LEAVES_POLYGON, k, f"item {k}: leg leaves the geofence polygon")
         horizontal = math.hypot(target[0] - position[0], target[1] - position[1])
         vertical = target[2] - position[2]
         length += horizontal + abs(vertical)
@@ -80,35 +146,36 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
     for k, item in enumerate(plan.items):
         if item.type == "takeoff":
             if not (0 < item.z <= ceiling):
-                errors.append(f"item {k}: take-off altitude {item.z:g} m outside (0, {ceiling:g}] m")
+                error(IssueKind.TAKEOFF_ALTITUDE, k, f"item {k}: take-off altitude {item.z:g} m outside (0, {ceiling:g}] m")
             fly_to(k, (position[0], position[1], item.z))
             airborne = True
         elif item.type in ("waypoint", "loiter"):
             if not airborne:
-                errors.append(f"item {k}: {item.type} before any take-off")
+                error(IssueKind.BEFORE_TAKEOFF, k, f"item {k}: {item.type} before any take-off")
             if not all(math.isfinite(v) for v in (item.x, item.y, item.z)):
-                errors.append(f"item {k}: {item.type} needs a position and an altitude")
+                error(IssueKind.NO_POSITION, k, f"item {k}: {item.type} needs a position and an altitude")
                 continue
             if item.frame == GLOBAL and not (-90 <= item.x <= 90 and -180 <= item.y <= 180):
-                errors.append(f"item {k}: latitude/longitude out of range")
+                error(IssueKind.COORDINATES_OUT_OF_RANGE, k, f"item {k}: latitude/longitude out of range")
                 continue
             target = local_point(item, home)
             if target[2] > ceiling:
-                errors.append(f"item {k}: altitude {target[2]:g} m above the maximum {ceiling:g} m")
+                error(IssueKind.ABOVE_CEILING, k, f"item {k}: altitude {target[2]:g} m above the maximum {ceiling:g} m")
             elif target[2] < MIN_ALTITUDE:
-                errors.append(f"item {k}: altitude {target[2]:g} m below the minimum {MIN_ALTITUDE:g} m")
+                error(IssueKind.BELOW_MINIMUM, k, f"item {k}: altitude {target[2]:g} m below the minimum {MIN_ALTITUDE:g} m")
             distance = math.hypot(target[0], target[1])
             if fence.max_distance > 0 and distance > fence.max_distance:
-                errors.append(f"item {k}: {distance:.0f} m from home exceeds the geofence's {fence.max_distance:g} m")
+                error(IssueKind.TOO_FAR, k,
+                      f"item {k}: {distance:.0f} m from home exceeds the geofence's {fence.max_distance:g} m")
             fly_to(k, target)
             duration += item.hold
         elif item.type == "change_speed":
             if item.speed > limits.max_speed:
-                errors.append(f"item {k}: speed {item.speed:g} m/s above the vehicle's {limits.max_speed:g} m/s")
+                error(IssueKind.SPEED, k, f"item {k}: speed {item.speed:g} m/s above the vehicle's {limits.max_speed:g} m/s")
             speed = min(item.speed, limits.max_speed)
         elif item.type == "rtl":
             if rtl_altitude > ceiling:
-                errors.append(f"item {k}: RTL altitude {rtl_altitude:g} m above the maximum {ceiling:g} m")
+                error(IssueKind.RTL_ALTITUDE, k, f"item {k}: RTL altitude {rtl_altitude:g} m above the maximum {ceiling:g} m")
             fly_to(k, (position[0], position[1], max(position[2], rtl_altitude)))
             fly_to(k, (0.0, 0.0, position[2]))
             fly_to(k, (0.0, 0.0, 0.0))
@@ -121,31 +188,40 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
             airborne = False
     if endurance_s is not None and endurance_s > 0:
         if duration > 0.8 * endurance_s:
-            errors.append(f"plan: estimated {duration:.0f} s of flight exceeds 80 % of the {endurance_s:.0f} s left")
+            error(IssueKind.ENDURANCE, None,
+                  f"plan: estimated {duration:.0f} s of flight exceeds 80 % of the {endurance_s:.0f} s left")
         elif duration > 0.6 * endurance_s:
-            warnings.append(f"plan: estimated {duration:.0f} s of flight uses over 60 % of the {endurance_s:.0f} s left")
+            margin = f"plan: estimated {duration:.0f} s of flight uses over 60 % of the {endurance_s:.0f} s left"
+            warnings.append(PlanIssue(IssueKind.ENDURANCE_MARGIN, None, margin))
     if airborne:
-        warnings.append("plan: ends in the air (no land or RTL item)")
+        warnings.append(PlanIssue(IssueKind.ENDS_IN_AIR, None, "plan: ends in the air (no land or RTL item)"))
     return ValidationResult(tuple(errors), tuple(warnings), length, duration)
 
 
+def ceiling_of(fence: Geofence, limits: VehicleLimits) -> float:
+    """The altitude limit above home in force: the vehicle's, lowered by the fence's if it has one."""
+    return min(limits.max_altitude, fence.max_altitude) if fence.max_altitude > 0 else limits.max_altitude
+
+
 def check_goto(target: Item, position: tuple[float, float, float], fence: Geofence, home: GeoOrigin,
-               limits: VehicleLimits = VehicleLimits()) -> list[str]:
+               limits: VehicleLimits = VehicleLimits()) -> list[PlanIssue]:
     """Why a go-to (DO_REPOSITION) from `position` (ENU, m) to `target` must be refused: the
     same altitude, distance and polygon rules as a plan leg, applied to the one leg flown now."""
     if not all(math.isfinite(v) for v in (target.x, target.y, target.z)):
-        return ["go-to target needs a finite position and altitude"]
+        return [PlanIssue(IssueKind.NO_POSITION, None, "go-to target needs a finite position and altitude")]
     if target.frame == GLOBAL and not (-90 <= target.x <= 90 and -180 <= target.y <= 180):
-        return ["go-to target latitude/longitude out of range"]
-    ceiling = min(limits.max_altitude, fence.max_altitude) if fence.max_altitude > 0 else limits.max_altitude
+        return [PlanIssue(IssueKind.COORDINATES_OUT_OF_RANGE, None, "go-to target latitude/longitude out of range")]
+    ceiling = ceiling_of(fence, limits)
     point = local_point(target, home)
-    errors = []
+    local = LocalFence.from_geofence(fence, home)
+    issues = []
     if not MIN_ALTITUDE <= point[2] <= ceiling:
-        errors.append(f"go-to altitude {point[2]:g} m outside [{MIN_ALTITUDE:g}, {ceiling:g}] m")
-    if fence.max_distance > 0 and math.hypot(point[0], point[1]) > fence.max_distance:
-        errors.append(f"go-to target {math.hypot(point[0], point[1]):.0f} m from home exceeds the geofence's "
-                      f"{fence.max_distance:g} m")
-    polygon = [home.to_enu(lat, lon, home.altitude)[:2] for lat, lon in fence.polygon]
-    if polygon and not leg_inside(position[:2], point[:2], polygon):
-        errors.append("go-to leg leaves the geofence polygon")
-    return errors
+        issues.append(PlanIssue(IssueKind.OUTSIDE_ALTITUDE_BAND, None,
+                                f"go-to altitude {point[2]:g} m outside [{MIN_ALTITUDE:g}, {ceiling:g}] m"))
+    distance = math.hypot(point[0], point[1])
+    if local.max_distance > 0 and distance > local.max_distance:
+        issues.append(PlanIssue(IssueKind.TOO_FAR, None, f"go-to target {distance:.0f} m from home exceeds the geofence's "
+                                                         f"{local.max_distance:g} m"))
+    if not local.leg_inside(position[:2], point[:2]):
+        issues.append(PlanIssue(IssueKind.LEAVES_POLYGON, None, "go-to leg leaves the geofence polygon"))
+    return issues

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.plan import Plan
 from c4d_common.plan_validation import local_point
-from c4d_common.vehicle import MissionStatus
+from c4d_common.vehicle import Command, MissionStatus, Nav
 
 Vec = tuple[float, float, float]
 
@@ -27,15 +27,24 @@ class Vehicle:
     position: Vec
     armed: bool
     in_air: bool
-    core_nav: int  # VehicleStatus.NAV_*
+    core_nav: int  # Nav (VehicleStatus.NAV_*)
     yaw: float = 0.0
 
 
 @dataclass
 class Output:
-    requests: list[tuple[str, float]] = field(default_factory=list)  # ("takeoff", alt) | ("goto" | "land" | "hold", 0)
+    requests: list[tuple[Command, float]] = field(default_factory=list)  # (TAKEOFF, alt) | (GOTO | LAND | HOLD, 0)
     setpoint: tuple[Vec, Vec, float] | None = None  # position, velocity feed-forward, yaw
     reached: list[int] = field(default_factory=list)
+
+
+@dataclass
+class CameraState:
+    """The camera as the plan's camera items have set it so far (for the payload block)."""
+
+    mode: str = "off"  # "off" | "on" (capture at waypoints) | "distance" (every `distance` metres)
+    distance: float = 0.0
+    captures_requested: int = 0
 
 
 class LegTracker:
@@ -64,6 +73,8 @@ class LegTracker:
 
 
 class MissionExecutor:
+    """Runs one plan (or a one-item RTL / go-to plan) item by item: see the module docstring."""
+
     def __init__(self, default_speed: float = 5.0, default_rtl_altitude: float = 15.0) -> None:
         self.plan: Plan | None = None
         self.home: GeoOrigin | None = None
@@ -72,7 +83,7 @@ class MissionExecutor:
         self.last_reached = -1
         self.default_speed, self.default_rtl_altitude = default_speed, default_rtl_altitude
         self.speed = default_speed
-        self.camera = {"mode": "off", "distance": 0.0, "captures_requested": 0}
+        self.camera = CameraState()
         self._phase = "start"
         self._tracker: LegTracker | None = None
         self._hold_until = 0.0
@@ -114,11 +125,11 @@ class MissionExecutor:
         self.status, self._phase, self._tracker = MissionStatus.ACTIVE, "start", None
         return ""
 
-    def request_rejected(self, name: str, reason: str, max_retries: int = 10) -> None:
+    def request_rejected(self, command: Command, reason: str, max_retries: int = 10) -> None:
         """The core refused a request (e.g. inputs not fresh yet): retry the item, abort after
         `max_retries` refusals so a mission never waits forever."""
         self.retries += 1
-        self.last_error = f"core refused {name}: {reason}"
+        self.last_error = f"core refused {command.name.lower()}: {reason}"
         if self.retries > max_retries:
             self.abort()
             return
@@ -150,7 +161,7 @@ class MissionExecutor:
             # core after it, never before (CI: a GCS's mode change overridden by a late HOLD)
             self.status = MissionStatus.COMPLETED
             if v.armed and v.in_air:  # a plan ending in the air: hold here, not at the go-to's start
-                out.requests.append(("hold", 0.0))
+                out.requests.append((Command.HOLD, 0.0))
         return out
 
     def _step_item(self, now: float, dt: float, v: Vehicle, out: Output) -> Output:
@@ -163,13 +174,14 @@ class MissionExecutor:
             return self._next(out)
         if kind.startswith("camera"):
             if kind == "camera_distance":
-                self.camera.update(mode="distance" if item.camera_distance > 0 else "off", distance=item.camera_distance)
+                self.camera.mode = "distance" if item.camera_distance > 0 else "off"
+                self.camera.distance = item.camera_distance
             elif kind == "camera_start":
-                self.camera["mode"] = "distance" if self.camera["distance"] > 0 else "on"
+                self.camera.mode = "distance" if self.camera.distance > 0 else "on"
             elif kind == "camera_stop":
-                self.camera["mode"] = "off"
+                self.camera.mode = "off"
             else:
-                self.camera["captures_requested"] += 1
+                self.camera.captures_requested += 1
             return self._next(out)
         if kind == "takeoff":
             return self._takeoff(item.z, v, out)
@@ -200,9 +212,9 @@ class MissionExecutor:
             if v.in_air:  # already flying: climb like a waypoint
                 self._phase = "done"
                 return self._next(out)
-            out.requests.append(("takeoff", altitude))
+            out.requests.append((Command.TAKEOFF, altitude))
             self._phase = "wait"
-        elif self._phase == "wait" and v.in_air and v.core_nav == 3:  # NAV_HOLD after the climb
+        elif self._phase == "wait" and v.in_air and v.core_nav == Nav.HOLD:  # the core holds after the climb
             return self._next(out)
         return out
 
@@ -212,7 +224,7 @@ class MissionExecutor:
             # navigation state already says GOTO: that report can be stale. A "hold" sent just before
             # (a plan ending in the air, then an RTL or go-to commanded at once) is still in flight, and
             # requests reach the core in order, so only a later "goto" is sure to be the one it keeps.
-            out.requests.append(("goto", 0.0))
+            out.requests.append((Command.GOTO, 0.0))
             self._tracker = LegTracker(v.position, target, self.speed)
             dx, dy = target[0] - v.position[0], target[1] - v.position[1]
             self._yaw = yaw if math.isfinite(yaw) else (math.atan2(dy, dx) if math.hypot(dx, dy) > 1.0 else v.yaw)
@@ -249,7 +261,7 @@ class MissionExecutor:
 
     def _land(self, v: Vehicle, out: Output) -> Output:
         if self._phase != "landing":
-            out.requests.append(("land", 0.0))
+            out.requests.append((Command.LAND, 0.0))
             self._phase = "landing"
         elif not v.armed:
             return self._next(out)

@@ -15,88 +15,116 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import Any
+
+from geometry_msgs.msg import Vector3Stamped
 
 from c4d_common.geodesy import GeoOrigin
-from c4d_common.plan import PlanError
+from c4d_common.plan import Plan, PlanError
+from c4d_common.vehicle import MissionStatus
+from c4d_interfaces.msg import CaptureEvent, MissionPlan, MissionState, VehicleState, VehicleStatus
+from c4d_ros import manifest as m
+from c4d_ros import node_runtime
+from c4d_ros.params import ParameterError, Spec, declare_all
+from c4d_ros.plan_msgs import plan_from_msg
 
-from .payload import CameraTrigger, CaptureLog, camera_mode
+from .payload import CameraTrigger, Capture, CaptureLog, camera_mode
+
+GIMBAL_PERIOD_S = 0.02  # 50 Hz is plenty for a gimbal command
+TRIGGERS = {"waypoint": CaptureEvent.TRIGGER_WAYPOINT, "distance": CaptureEvent.TRIGGER_DISTANCE,
+            "command": CaptureEvent.TRIGGER_COMMAND}
+PARAMETERS = {
+    "output_dir": Spec("c4d_captures", "directory of the per-flight capture logs (GeoJSON + CSV; path)", read_only=True),
+    "events_executor": Spec(True, "spin with rclpy's EventsExecutor (less CPU for the 500 Hz state; bool)", read_only=True),
+}
 
 
-def main(argv: list[str] | None = None) -> int:
-    from c4d_ros import node_runtime
+def stamp_s(stamp: Any) -> float:
+    return float(stamp.sec + stamp.nanosec * 1e-9)
 
-    rclpy = node_runtime.init(argv)
-    from geometry_msgs.msg import Vector3Stamped
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-    from c4d_interfaces.msg import CaptureEvent, MissionPlan, MissionState, VehicleState, VehicleStatus
-    from c4d_ros.plan_msgs import plan_from_msg
+class PayloadNode:
+    """Follows mission/plan, mission/state, vehicle/status and the vehicle state; turns the
+    CameraTrigger's captures into CaptureEvents, the per-flight CaptureLog and gimbal commands."""
 
-    node = rclpy.create_node("payload")
-    output_dir = Path(node.declare_parameter("output_dir", "c4d_captures").value)
-    events = bool(node.declare_parameter("events_executor", True).value)
-    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    pub_capture = node.create_publisher(CaptureEvent, "payload/captures", QoSProfile(depth=50,
-                                                                                       reliability=ReliabilityPolicy.RELIABLE))
-    pub_gimbal = node.create_publisher(Vector3Stamped, "payload/gimbal", 10)
-    world: dict = {"plan": None, "mission": None, "armed": False, "log": None, "gimbal_t": 0.0, "trigger": CameraTrigger()}
+    def __init__(self, node: Any, output_dir: Path) -> None:
+        self.node, self.output_dir = node, output_dir
+        self.plan: Plan | None = None
+        self.mission: MissionState | None = None
+        self.armed = False
+        self.log: CaptureLog | None = None
+        self.trigger = CameraTrigger()
+        self.origin: GeoOrigin | None = None  # one object per home, so the trigger's path cache stays valid
+        self.gimbal_t = 0.0
+        self.pub_capture = node.create_publisher(CaptureEvent, m.CAPTURES.name, m.CAPTURES.qos)
+        self.pub_gimbal = node.create_publisher(Vector3Stamped, m.GIMBAL.name, m.GIMBAL.qos)
+        node.create_subscription(MissionPlan, m.MISSION_PLAN.name, self._on_plan, m.MISSION_PLAN.qos)
+        node.create_subscription(MissionState, m.MISSION_STATE.name, self._on_mission, m.MISSION_STATE.qos)
+        node.create_subscription(VehicleStatus, m.STATUS.name, self._on_status, m.STATUS.qos)
+        node.create_subscription(VehicleState, m.NAV_STATE.name, self._on_state, m.NAV_STATE.qos)
 
-    def on_plan(msg) -> None:
+    def _on_plan(self, msg: MissionPlan) -> None:
         try:
-            world["plan"] = plan_from_msg(msg)
+            self.plan = plan_from_msg(msg)
         except PlanError as exc:
-            node.get_logger().error(f"mission/plan unusable: {exc}")
+            self.node.get_logger().error(f"mission/plan unusable: {exc}")
 
-    def on_status(msg) -> None:
-        if msg.armed and not world["armed"]:  # a new flight: new files, counting from 0
+    def _on_mission(self, msg: MissionState) -> None:
+        self.mission = msg
+
+    def _on_status(self, msg: VehicleStatus) -> None:
+        if msg.armed and not self.armed:  # a new flight: new files, counting from 0
             stem = time.strftime("captures_%Y%m%dT%H%M%SZ", time.gmtime())
-            world["log"] = CaptureLog(output_dir, stem)
-            world["trigger"] = CameraTrigger()
-            node.get_logger().info(f"capture log {world['log'].geojson}")
-        world["armed"] = msg.armed
+            self.log = CaptureLog(self.output_dir, stem)
+            self.trigger = CameraTrigger()
+            self.node.get_logger().info(f"capture log {self.log.geojson}")
+        self.armed = msg.armed
 
-    def on_state(msg) -> None:
-        mission, plan = world["mission"], world["plan"]
+    def _on_state(self, msg: VehicleState) -> None:
+        mission, plan = self.mission, self.plan
         if mission is None or plan is None or mission.plan_id != plan.plan_id:
             return
-        if mission.state != MissionState.STATE_ACTIVE or not world["armed"]:
-            return
-        position = (msg.position.x, msg.position.y, msg.position.z)
-        if not msg.valid & VehicleState.VALID_ORIGIN:
+        if mission.state != MissionStatus.ACTIVE or not self.armed or not msg.valid & VehicleState.VALID_ORIGIN:
             return
         origin = GeoOrigin(msg.origin.latitude, msg.origin.longitude, msg.origin.altitude)
-        if world.get("origin") != origin:
-            world["origin"] = origin  # one object per home, so the trigger's path cache stays valid
-        captures = world["trigger"].update(plan, mission.current_item, mission.last_reached_item, position,
-                                           world["origin"])
+        if self.origin != origin:
+            self.origin = origin
+        position = (msg.position.x, msg.position.y, msg.position.z)
+        captures = self.trigger.update(plan, mission.current_item, mission.last_reached_item, position, self.origin)
         mode, _ = camera_mode(plan, mission.current_item)
         gimbal = Vector3Stamped()
         gimbal.header = msg.header
         gimbal.vector.y = -math.pi / 2 if mode != "off" else 0.0  # pitch down to nadir while surveying
-        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        if t - world["gimbal_t"] >= 0.02:  # 50 Hz is plenty for a gimbal command
-            world["gimbal_t"] = t
-            pub_gimbal.publish(gimbal)
+        t = stamp_s(msg.header.stamp)
+        if t - self.gimbal_t >= GIMBAL_PERIOD_S:
+            self.gimbal_t = t
+            self.pub_gimbal.publish(gimbal)
         for c in captures:
-            lat, lon, alt = origin.to_geodetic(*c.position)
-            event = CaptureEvent(index=c.index, mission_item=c.mission_item, file_name=f"img_{c.index:05d}.jpg",
-                                 trigger={"waypoint": CaptureEvent.TRIGGER_WAYPOINT, "distance": CaptureEvent.TRIGGER_DISTANCE,
-                                          "command": CaptureEvent.TRIGGER_COMMAND}[c.trigger])
-            event.header = msg.header
-            event.geodetic.latitude, event.geodetic.longitude, event.geodetic.altitude = lat, lon, alt
-            event.position.x, event.position.y, event.position.z = c.position
-            event.orientation = msg.orientation
-            event.gimbal_rpy.y = gimbal.vector.y
-            pub_capture.publish(event)
-            if world["log"] is not None:
-                world["log"].add(c, msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, lat, lon, alt, event.file_name)
+            self._publish_capture(c, msg, origin, gimbal.vector.y)
 
-    node.create_subscription(MissionPlan, "mission/plan", on_plan, latched)
-    node.create_subscription(MissionState, "mission/state", lambda m: world.__setitem__("mission", m), latched)
-    node.create_subscription(VehicleStatus, "vehicle/status", on_status, latched)
-    node.create_subscription(VehicleState, "navigation/state", on_state,
-                             QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT))
-    return node_runtime.spin_node(node, events)
+    def _publish_capture(self, c: Capture, msg: VehicleState, origin: GeoOrigin, gimbal_pitch: float) -> None:
+        lat, lon, alt = origin.to_geodetic(*c.position)
+        event = CaptureEvent(index=c.index, mission_item=c.mission_item, file_name=f"img_{c.index:05d}.jpg",
+                             trigger=TRIGGERS[c.trigger])
+        event.header = msg.header
+        event.geodetic.latitude, event.geodetic.longitude, event.geodetic.altitude = lat, lon, alt
+        event.position.x, event.position.y, event.position.z = c.position
+        event.orientation = msg.orientation
+        event.gimbal_rpy.y = gimbal_pitch
+        self.pub_capture.publish(event)
+        if self.log is not None:
+            self.log.add(c, stamp_s(msg.header.stamp), lat, lon, alt, event.file_name)
+
+
+def main(argv: list[str] | None = None) -> int:
+    rclpy = node_runtime.init(argv)
+    node = rclpy.create_node("payload")
+    try:
+        values = declare_all(node, PARAMETERS)
+    except ParameterError as err:
+        return node_runtime.fail("payload", str(err), node)
+    PayloadNode(node, Path(values["output_dir"]))
+    return node_runtime.spin_node(node, bool(values["events_executor"]))
 
 
 if __name__ == "__main__":

@@ -43,9 +43,9 @@ class Sitl:
         return Vehicle(s.position, out.armed, out.landed not in (Landed.ON_GROUND,), int(out.nav), quat.yaw_of(s.orientation))
 
     def send(self, requests) -> None:
-        for name, value in requests:
-            ok, reason = self.loop.core.request(Request(Command[name.upper()], altitude=value))
-            assert ok, (name, reason)
+        for command, value in requests:
+            ok, reason = self.loop.core.request(Request(command, altitude=value))
+            assert ok, (command, reason)
 
     def step(self, executor: MissionExecutor, dt: float, vehicle: Vehicle | None = None):
         """One guidance step of `executor` (on a possibly stale `vehicle`); its output is applied."""
@@ -87,7 +87,7 @@ def test_survey_completes_every_waypoint_within_acceptance_and_lands_home():
             assert math.dist(reached[k], target) <= item.acceptance_radius, (k, reached[k], target)
     assert not loop.core.out.armed and loop.plant.state.position[2] < 0.05
     assert math.hypot(*loop.plant.state.position[:2]) < 1.0  # back home
-    assert executor.camera["mode"] == "off" and executor.camera["distance"] == 5
+    assert executor.camera.mode == "off" and executor.camera.distance == 5
     assert loop.executive.profiler.overruns_total == 0
     # camera every 5 m along the six survey legs (88 m): 17 captures, each within 1 m of its planned spot
     path = [(0.0, 0.0)] + [local_point(i, HOME)[:2] for i in plan.items if i.type == "waypoint"]
@@ -105,14 +105,14 @@ def test_refused_requests_are_retried_then_the_mission_aborts():
     executor.load(Plan((Item("takeoff", z=5.0),)), HOME)
     executor.start()
     grounded = Vehicle((0.0, 0.0, 0.0), False, False, 0)
-    assert executor.step(0.0, 0.02, grounded).requests == [("takeoff", 5.0)]
+    assert executor.step(0.0, 0.02, grounded).requests == [(Command.TAKEOFF, 5.0)]
     last = 0.0  # time of the step that sent the refused request
     for _ in range(10):
-        executor.request_rejected("takeoff", "navigation state is stale")
+        executor.request_rejected(Command.TAKEOFF, "navigation state is stale")
         assert executor.step(last + 0.5, 0.02, grounded).requests == []  # waits a second between attempts
         last += 1.01
-        assert executor.step(last, 0.02, grounded).requests == [("takeoff", 5.0)]
-    executor.request_rejected("takeoff", "navigation state is stale")
+        assert executor.step(last, 0.02, grounded).requests == [(Command.TAKEOFF, 5.0)]
+    executor.request_rejected(Command.TAKEOFF, "navigation state is stale")
     assert executor.status == MissionStatus.ABORTED and "stale" in executor.last_error
 
 
@@ -133,12 +133,12 @@ def test_rtl_commanded_right_after_a_plan_ends_in_the_air_is_flown_despite_a_sta
             break
         loop.run(dt)
     # the step that passes the last item completes the plan and asks for the HOLD at once
-    assert executor.status == MissionStatus.COMPLETED and result.reached == [1] and result.requests == [("hold", 0.0)]
+    assert executor.status == MissionStatus.COMPLETED and result.reached == [1] and result.requests == [(Command.HOLD, 0.0)]
     assert stale.core_nav == 4  # the snapshot the RTL starts from still says GOTO
 
     rtl.load(Plan((Item("rtl"),), rtl_altitude=8.0), HOME)
     rtl.start()
-    assert sitl.step(rtl, dt, stale).requests == [("goto", 0.0)]  # queued after the hold: the core follows the RTL
+    assert sitl.step(rtl, dt, stale).requests == [(Command.GOTO, 0.0)]  # queued after the hold: the core follows the RTL
     while rtl.status == MissionStatus.ACTIVE and loop.t < 120.0:
         loop.run(dt)
         sitl.step(rtl, dt)
@@ -161,7 +161,7 @@ def test_pause_mid_leg_holds_and_resume_continues_from_where_the_vehicle_is():
         sitl.step(executor, dt)
         loop.run(dt)
     assert executor.current == 1 and executor.pause() == ""
-    sitl.send([("hold", 0.0)])
+    sitl.send([(Command.HOLD, 0.0)])
     paused_at = loop.plant.state.position
     for _ in range(int(3.0 / dt)):
         assert sitl.step(executor, dt).setpoint is None  # paused: no guidance
@@ -178,7 +178,7 @@ def test_pause_mid_leg_holds_and_resume_continues_from_where_the_vehicle_is():
     assert executor.resume() == ""
     here = loop.plant.state.position
     first = sitl.step(executor, dt)
-    assert first.requests == [("goto", 0.0)]  # the core held after the go-to: following again needs GOTO
+    assert first.requests == [(Command.GOTO, 0.0)]  # the core held after the go-to: following again needs GOTO
     assert math.dist(first.setpoint[0], here) < 0.5, (first.setpoint[0], here)  # the leg starts where the vehicle is
     while executor.status == MissionStatus.ACTIVE and loop.t < 180.0:
         loop.run(dt)

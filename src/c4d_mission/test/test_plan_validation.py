@@ -85,15 +85,47 @@ def test_goto_targets_follow_the_plan_rules():
 
     fence = load_plan(ROOT / "missions" / "survey.yaml").geofence
 
+    def check(target):
+        return [str(issue) for issue in check_goto(target, (0.0, 0.0, 5.0), fence, HOME)]
+
     def goto(east, north, alt):
         lat, lon, _ = HOME.to_geodetic(east, north, 0.0)
         return Item("loiter", frame=GLOBAL, x=lat, y=lon, z=alt)
 
-    assert check_goto(goto(10, 10, 8), (0.0, 0.0, 5.0), fence, HOME) == []
-    assert any("exceeds the geofence's 120 m" in e for e in check_goto(goto(200, 0, 8), (0.0, 0.0, 5.0), fence, HOME))
-    assert any("leaves the geofence polygon" in e for e in check_goto(goto(200, 0, 8), (0.0, 0.0, 5.0), fence, HOME))
-    assert check_goto(goto(10, 10, 50), (0.0, 0.0, 5.0), fence, HOME) == ["go-to altitude 50 m outside [1, 30] m"]
-    assert check_goto(Item("loiter", frame=GLOBAL, x=float("nan"), y=1.0, z=5.0), (0.0, 0.0, 5.0), fence, HOME) == \
+    assert check(goto(10, 10, 8)) == []
+    assert any("exceeds the geofence's 120 m" in e for e in check(goto(200, 0, 8)))
+    assert any("leaves the geofence polygon" in e for e in check(goto(200, 0, 8)))
+    assert check(goto(10, 10, 50)) == ["go-to altitude 50 m outside [1, 30] m"]
+    assert check(Item("loiter", frame=GLOBAL, x=float("nan"), y=1.0, z=5.0)) == \
         ["go-to target needs a finite position and altitude"]
-    assert check_goto(Item("loiter", frame=GLOBAL, x=95.0, y=1.0, z=5.0), (0.0, 0.0, 5.0), fence, HOME) == \
+    assert check(Item("loiter", frame=GLOBAL, x=95.0, y=1.0, z=5.0)) == \
         ["go-to target latitude/longitude out of range"]
+
+
+def test_issues_are_typed_with_the_item_and_the_same_text():
+    from c4d_common.plan import GLOBAL, Item
+    from c4d_common.plan_validation import IssueKind, check_goto
+
+    text = (ROOT / "missions" / "survey.yaml").read_text()
+    bad = text.replace("{type: waypoint, east: 20, north: 20, alt: 8", "{type: waypoint, east: 200, north: 20, alt: 8")
+    result = validate(plan_from_yaml_text(bad), HOME)
+    kinds = {(i.kind, i.item) for i in result.issues}
+    assert {(IssueKind.LEAVES_POLYGON, 4), (IssueKind.TOO_FAR, 4)} <= kinds
+    assert result.errors == tuple(str(i) for i in result.issues)
+    airborne = validate(plan_from_yaml_text("items:\n  - {type: takeoff, altitude: 5}\n"), HOME)
+    assert [i.kind for i in airborne.notices] == [IssueKind.ENDS_IN_AIR]
+    assert airborne.warnings == ("plan: ends in the air (no land or RTL item)",)
+    fence = load_plan(ROOT / "missions" / "survey.yaml").geofence
+    malformed = check_goto(Item("loiter", frame=GLOBAL, x=95.0, y=1.0, z=5.0), (0.0, 0.0, 5.0), fence, HOME)
+    assert [i.kind.malformed for i in malformed] == [True]
+    lat, lon, _ = HOME.to_geodetic(200.0, 0.0, 0.0)
+    outside = check_goto(Item("loiter", frame=GLOBAL, x=lat, y=lon, z=8.0), (0.0, 0.0, 5.0), fence, HOME)
+    assert {i.kind for i in outside} == {IssueKind.TOO_FAR, IssueKind.LEAVES_POLYGON}
+    assert not any(i.kind.malformed for i in outside)
+
+
+def test_flight_time_left_keeps_the_reserve():
+    from c4d_common.plan_validation import flight_time_left
+
+    assert flight_time_left(5.0, 20.0) == 5.0 * 0.8 / 20.0 * 3600.0
+    assert flight_time_left(float("nan"), 20.0) is None and flight_time_left(0.0, 20.0) is None

@@ -1,0 +1,188 @@
+"""Command arbitration: who flies the vehicle — the uploaded plan, an RTL / go-to, or the core alone.
+
+Why a class of its own: the mission node serves four sources of intent (mission/control, the
+vehicle/command service's RTL and go-to, hold / land / disarm / set mode forwarded to the core,
+and the plan's own requests), and the races between them were found only in whole-graph CI runs.
+Here they are plain method calls, tested without ROS (test_arbitration.py).
+
+Two executors: `mission` runs the accepted plan; `detour` runs a one-item plan for an RTL or a
+go-to commanded outside the plan. The rules:
+- RTL aborts the mission and flies home (needs an armed vehicle with a home position).
+- go-to pauses the mission (resume continues it from where the vehicle is) and loiters at the
+  target (needs a flying vehicle; checked against the plan's geofence unless forced — a target
+  that is itself malformed is never forced).
+- HOLD pauses the mission, LAND and DISARM abort it; each cancels a detour; then the core decides.
+- A mode set by hand that the core accepts pauses the mission and cancels a detour.
+- mission/control start and resume cancel a detour (the plan takes over again); pause asks the
+  core to HOLD.
+- `step()` runs the mission before the detour every tick, so the requests both send reach the core
+  in that order: a plan's final HOLD always precedes the GOTO of an RTL commanded at once (the
+  executor asks GOTO on every new leg and completes a plan in the step that passes its last item).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.plan import GLOBAL, Geofence, Item, Plan
+from c4d_common.plan_validation import IssueKind, PlanIssue, ValidationResult, VehicleLimits, check_goto, validate
+from c4d_common.vehicle import Command, CommandResult, Landed, MissionAction, MissionStatus, VehicleCommandId
+
+from .executor import MissionExecutor, Output, Vehicle
+
+Vec = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class VehicleView:
+    """What arbitration needs to know about the vehicle (from navigation/state and vehicle/status)."""
+
+    home: GeoOrigin | None  # None until the estimator has an origin
+    armed: bool
+    landed: Landed
+    position: Vec  # local ENU [m] from home
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The answer to a command: result and message for the caller, and what the core must get."""
+
+    result: CommandResult
+    message: str
+    forward: bool = False  # the core decides: pass the request on and answer with its reply
+    core: tuple[Command, ...] = ()  # requests to send to the core besides (not awaited)
+
+
+@dataclass(frozen=True)
+class Acceptance:
+    """The verdict on an uploaded plan: the accepted plan (with its id) or the issues against it."""
+
+    plan: Plan | None
+    errors: tuple[PlanIssue, ...]
+    warnings: tuple[PlanIssue, ...]
+    validation: ValidationResult | None = None
+
+
+def _refused(kind: IssueKind, text: str) -> Acceptance:
+    return Acceptance(None, (PlanIssue(kind, None, text),), ())
+
+
+def _accepted(message: str) -> Decision:
+    return Decision(CommandResult.ACCEPTED, message)
+
+
+class CommandArbiter:
+    """Owns the plan executor and the RTL / go-to executor and applies the rules of the module docstring."""
+
+    def __init__(self, limits: VehicleLimits | None = None) -> None:
+        self.limits = limits or VehicleLimits()
+        self.mission = MissionExecutor()
+        self.detour = MissionExecutor()  # RTL and go-to commanded outside a plan
+        self._next_id = 1
+
+    # ------------------------------------------------------------------ plans
+    def accept(self, plan: Plan, home: GeoOrigin | None, endurance_s: float | None) -> Acceptance:
+        """Validate `plan` and, if it passes and no mission is active, load it with a new id."""
+        if home is None:
+            return _refused(IssueKind.NO_HOME, "plan: no home position yet (estimator not ready)")
+        result = validate(plan, home, self.limits, endurance_s)
+        if not result.ok:
+            return Acceptance(None, result.issues, result.notices, result)
+        if self.mission.status == MissionStatus.ACTIVE:
+            return _refused(IssueKind.MISSION_ACTIVE, "plan: a mission is active (pause or land first)")
+        plan = plan.with_id(self._next_id)
+        self._next_id += 1
+        self.mission.load(plan, home)
+        return Acceptance(plan, (), result.notices, result)
+
+    def _rtl_altitude(self) -> float:
+        return self.mission.plan.rtl_altitude if self.mission.plan else 0.0
+
+    # ------------------------------------------------------------------ mission/control
+    def control(self, action: int, item: int = 0) -> Decision:
+        """mission/control: start (at `item`), pause, resume, clear, set current item."""
+        try:
+            kind = MissionAction(action)
+        except ValueError:
+            return Decision(CommandResult.UNSUPPORTED, "unknown action")
+        core: tuple[Command, ...] = ()
+        if kind == MissionAction.START:
+            reason = self.mission.start(item)
+            if not reason:
+                self.detour.clear()
+        elif kind == MissionAction.PAUSE:
+            reason = self.mission.pause()
+            core = () if reason else (Command.HOLD,)
+        elif kind == MissionAction.RESUME:
+            reason = self.mission.resume()
+            if not reason:
+                self.detour.clear()  # a go-to interrupted the mission: the plan takes over again
+        elif kind == MissionAction.CLEAR:
+            reason = "mission is active (pause it first)" if self.mission.status == MissionStatus.ACTIVE else ""
+            if not reason:
+                self.mission.clear()
+        else:  # SET_CURRENT
+            plan = self.mission.plan
+            reason = "" if plan is not None and 0 <= item < len(plan.items) else f"item {item} does not exist"
+            if not reason:
+                self.mission.current = item
+        if reason:
+            return Decision(CommandResult.DENIED, reason)
+        return Decision(CommandResult.ACCEPTED, "accepted", core=core)
+
+    # ------------------------------------------------------------------ vehicle/command
+    def command(self, command: int, vehicle: VehicleView, force: bool = False, target: Item | None = None) -> Decision:
+        """vehicle/command after the pre-arm checks: RTL and go-to are flown here, everything else
+        is forwarded to the core (HOLD, LAND, DISARM first take the vehicle from the plan)."""
+        if command == VehicleCommandId.RETURN_TO_LAUNCH:
+            return self._return_to_launch(vehicle)
+        if command == VehicleCommandId.GOTO:
+            return self._go_to(vehicle, force, target)
+        if command == VehicleCommandId.HOLD:
+            self.mission.pause()
+            self.detour.clear()
+        elif command in (VehicleCommandId.LAND, VehicleCommandId.DISARM):
+            self.mission.abort()
+            self.detour.clear()
+        return Decision(CommandResult.ACCEPTED, "", forward=True)
+
+    def core_replied(self, command: int, result: int) -> None:
+        """The core's answer to a forwarded command: a mode set by hand (pilot, GCS) takes the
+        vehicle from the plan — the mission pauses (set mission mode again to resume where it
+        stopped) and an RTL or go-to is cancelled."""
+        if command == VehicleCommandId.SET_MODE and result == CommandResult.ACCEPTED:
+            self.mission.pause()
+            self.detour.clear()
+
+    def _return_to_launch(self, vehicle: VehicleView) -> Decision:
+        if vehicle.home is None or not vehicle.armed:
+            return Decision(CommandResult.DENIED, "RTL needs an armed vehicle with a home position")
+        self.mission.abort()
+        self.detour.load(Plan((Item("rtl"),), rtl_altitude=self._rtl_altitude()), vehicle.home)
+        self.detour.start()
+        return _accepted("returning to launch")
+
+    def _go_to(self, vehicle: VehicleView, force: bool, target: Item | None) -> Decision:
+        if vehicle.home is None or not vehicle.armed or vehicle.landed != Landed.IN_AIR or target is None:
+            return Decision(CommandResult.DENIED, "go-to needs a flying vehicle (take off first)")
+        fence = self.mission.plan.geofence if self.mission.plan else Geofence()
+        issues = check_goto(target, vehicle.position, fence, vehicle.home, self.limits)
+        if issues and (not force or any(i.kind.malformed for i in issues)):
+            return Decision(CommandResult.DENIED, "; ".join(map(str, issues)))
+        self.mission.pause()  # a running mission can be resumed after the go-to
+        self.detour.load(Plan((target,), rtl_altitude=self._rtl_altitude()), vehicle.home)
+        self.detour.start()
+        forced = f" (forced: {'; '.join(map(str, issues))})" if issues else ""
+        return _accepted("going to the target" + forced)
+
+    # ------------------------------------------------------------------ guidance
+    def step(self, now: float, dt: float, vehicle: Vehicle) -> list[tuple[MissionExecutor, Output]]:
+        """One guidance step of the mission, then of the detour (this order is the contract)."""
+        return [(runner, runner.step(now, dt, vehicle)) for runner in (self.mission, self.detour)]
+
+
+def goto_target(latitude: float, longitude: float, altitude: float, yaw: float) -> Item:
+    """A go-to target as the one item of a detour plan: loiter there until told otherwise."""
+    return Item("loiter", frame=GLOBAL, x=latitude, y=longitude, z=altitude, hold=math.inf, yaw=yaw)

@@ -1,0 +1,130 @@
+"""Command arbitration without ROS: mission / RTL / go-to / hold / set mode, and the race fixes."""
+
+import math
+from pathlib import Path
+
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.plan import Item, Plan
+from c4d_common.plan_files import load_plan
+from c4d_common.plan_validation import IssueKind
+from c4d_common.vehicle import Command, CommandResult, Landed, MissionAction, MissionStatus, Nav, VehicleCommandId
+from c4d_mission.arbitration import CommandArbiter, VehicleView, goto_target
+from c4d_mission.executor import Vehicle
+
+ROOT = Path(__file__).resolve().parents[3]
+HOME = GeoOrigin(43.5629, 1.4815, 146.0)
+FLYING = VehicleView(HOME, True, Landed.IN_AIR, (0.0, 0.0, 8.0))
+GROUNDED = VehicleView(HOME, False, Landed.ON_GROUND, (0.0, 0.0, 0.0))
+
+
+def survey_arbiter() -> CommandArbiter:
+    arbiter = CommandArbiter()
+    verdict = arbiter.accept(load_plan(ROOT / "missions" / "survey.yaml"), HOME, None)
+    assert verdict.plan is not None and verdict.plan.plan_id == 1 and not verdict.errors
+    return arbiter
+
+
+def target(east, north, alt):
+    lat, lon, _ = HOME.to_geodetic(east, north, 0.0)
+    return goto_target(lat, lon, alt, math.nan)
+
+
+def test_plan_acceptance_needs_home_and_no_active_mission():
+    arbiter = CommandArbiter()
+    plan = load_plan(ROOT / "missions" / "survey.yaml")
+    assert [i.kind for i in arbiter.accept(plan, None, None).errors] == [IssueKind.NO_HOME]
+    assert arbiter.accept(plan, HOME, None).plan.plan_id == 1
+    assert arbiter.control(MissionAction.START).result == CommandResult.ACCEPTED
+    refused = arbiter.accept(plan, HOME, None)
+    assert refused.plan is None and [str(e) for e in refused.errors] == ["plan: a mission is active (pause or land first)"]
+    assert refused.errors[0].kind == IssueKind.MISSION_ACTIVE
+
+
+def test_mission_control_results_and_the_hold_on_pause():
+    arbiter = survey_arbiter()
+    assert arbiter.control(99).result == CommandResult.UNSUPPORTED
+    assert arbiter.control(MissionAction.PAUSE).message == "mission is not active"
+    assert arbiter.control(MissionAction.START).result == CommandResult.ACCEPTED
+    assert arbiter.control(MissionAction.CLEAR).message == "mission is active (pause it first)"
+    paused = arbiter.control(MissionAction.PAUSE)
+    assert paused.result == CommandResult.ACCEPTED and paused.message == "accepted" and paused.core == (Command.HOLD,)
+    assert arbiter.control(MissionAction.SET_CURRENT, 99).message == "item 99 does not exist"
+    assert arbiter.control(MissionAction.SET_CURRENT, 3).result == CommandResult.ACCEPTED and arbiter.mission.current == 3
+    assert arbiter.control(MissionAction.CLEAR).result == CommandResult.ACCEPTED and arbiter.mission.plan is None
+
+
+def test_rtl_aborts_the_mission_and_needs_an_armed_vehicle_with_home():
+    arbiter = survey_arbiter()
+    arbiter.control(MissionAction.START)
+    denied = arbiter.command(VehicleCommandId.RETURN_TO_LAUNCH, GROUNDED)
+    assert denied.result == CommandResult.DENIED and denied.message == "RTL needs an armed vehicle with a home position"
+    rtl = arbiter.command(VehicleCommandId.RETURN_TO_LAUNCH, FLYING)
+    assert rtl.result == CommandResult.ACCEPTED and rtl.message == "returning to launch" and not rtl.forward
+    assert arbiter.mission.status == MissionStatus.ABORTED and arbiter.detour.status == MissionStatus.ACTIVE
+    assert arbiter.detour.plan.rtl_altitude == arbiter.mission.plan.rtl_altitude
+
+
+def test_goto_pauses_the_mission_and_resume_takes_over_again():
+    arbiter = survey_arbiter()
+    arbiter.control(MissionAction.START)
+    assert arbiter.command(VehicleCommandId.GOTO, GROUNDED, target=target(10, 10, 8)).message == \
+        "go-to needs a flying vehicle (take off first)"
+    going = arbiter.command(VehicleCommandId.GOTO, FLYING, target=target(10, 10, 8))
+    assert going.result == CommandResult.ACCEPTED and going.message == "going to the target"
+    assert arbiter.mission.status == MissionStatus.PAUSED and arbiter.detour.status == MissionStatus.ACTIVE
+    assert arbiter.detour.plan.items[0].hold == math.inf
+    assert arbiter.control(MissionAction.RESUME).result == CommandResult.ACCEPTED
+    assert arbiter.mission.status == MissionStatus.ACTIVE and arbiter.detour.status == MissionStatus.NO_PLAN
+
+
+def test_goto_outside_the_fence_only_when_forced_and_never_a_malformed_target():
+    arbiter = survey_arbiter()
+    refused = arbiter.command(VehicleCommandId.GOTO, FLYING, target=target(200, 0, 8))
+    assert refused.result == CommandResult.DENIED and "leaves the geofence polygon" in refused.message
+    forced = arbiter.command(VehicleCommandId.GOTO, FLYING, force=True, target=target(200, 0, 8))
+    assert forced.result == CommandResult.ACCEPTED and forced.message.startswith("going to the target (forced: ")
+    malformed = goto_target(95.0, 1.0, 8.0, math.nan)
+    refused = arbiter.command(VehicleCommandId.GOTO, FLYING, force=True, target=malformed)
+    assert refused.result == CommandResult.DENIED and refused.message == "go-to target latitude/longitude out of range"
+
+
+def test_hold_land_disarm_and_mode_changes_take_the_vehicle_from_the_plan():
+    arbiter = survey_arbiter()
+    arbiter.control(MissionAction.START)
+    arbiter.command(VehicleCommandId.RETURN_TO_LAUNCH, FLYING)
+    arbiter.control(MissionAction.START)  # the plan again: the RTL is cancelled
+    assert arbiter.detour.status == MissionStatus.NO_PLAN
+    hold = arbiter.command(VehicleCommandId.HOLD, FLYING)
+    assert hold.forward and arbiter.mission.status == MissionStatus.PAUSED
+    arbiter.control(MissionAction.RESUME)
+    arbiter.command(VehicleCommandId.GOTO, FLYING, target=target(10, 10, 8))
+    assert arbiter.command(VehicleCommandId.LAND, FLYING).forward
+    assert arbiter.mission.status == MissionStatus.ABORTED and arbiter.detour.status == MissionStatus.NO_PLAN
+
+    arbiter = survey_arbiter()
+    arbiter.control(MissionAction.START)
+    assert arbiter.command(VehicleCommandId.SET_MODE, FLYING).forward
+    arbiter.core_replied(VehicleCommandId.SET_MODE, CommandResult.DENIED)
+    assert arbiter.mission.status == MissionStatus.ACTIVE  # refused by the core: nothing changes
+    arbiter.core_replied(VehicleCommandId.SET_MODE, CommandResult.ACCEPTED)
+    assert arbiter.mission.status == MissionStatus.PAUSED
+    assert arbiter.command(VehicleCommandId.ARM, GROUNDED).forward
+
+
+def test_a_plan_ending_in_the_air_holds_then_an_rtl_at_once_still_asks_for_goto():
+    """The MAVSDK CI race: the plan's final HOLD is sent in the step that completes it; an RTL
+    commanded right after, on a status that still says GOTO, must ask for GOTO again."""
+    arbiter = CommandArbiter()
+    plan = Plan((Item("takeoff", z=5.0), Item("waypoint", x=0.0, y=0.0, z=5.0)))
+    assert arbiter.accept(plan, HOME, None).plan is not None
+    arbiter.control(MissionAction.START)
+    stale = Vehicle((0.0, 0.0, 5.0), True, True, int(Nav.GOTO))
+    t = 0.0
+    while arbiter.mission.status == MissionStatus.ACTIVE and t < 1.0:
+        steps = arbiter.step(t, 0.02, stale)
+        assert [runner for runner, _ in steps] == [arbiter.mission, arbiter.detour]  # the mission first, every tick
+        t += 0.02
+    assert steps[0][1].requests[-1] == (Command.HOLD, 0.0) and arbiter.mission.status == MissionStatus.COMPLETED
+    assert arbiter.command(VehicleCommandId.RETURN_TO_LAUNCH, FLYING).result == CommandResult.ACCEPTED
+    (_, mission_out), (_, detour_out) = arbiter.step(t, 0.02, stale)
+    assert mission_out.requests == [] and detour_out.requests == [(Command.GOTO, 0.0)]
