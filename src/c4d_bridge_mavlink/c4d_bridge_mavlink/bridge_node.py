@@ -31,7 +31,7 @@ from c4d_ros.params import ParameterError, Spec, declare_all
 
 from . import encoders as enc
 from .bridge_ros import RosSide
-from .commands import Context, translate
+from .commands import Context, Kind, translate
 from .link_monitor import LinkMonitor
 from .manual import PilotInput
 from .mission_protocol import MissionServer
@@ -224,20 +224,20 @@ class BridgeNode:
         action = translate(msg, Context(snap.home, self.params.get("MIS_TAKEOFF_ALT"),
                                         snap.mission_state == M.MISSION_STATE_ACTIVE))
         ack = lambda result, reason="": self.ros.ack(msg, result, reason)  # noqa: E731
-        if action.kind == "ack":
+        if action.kind == Kind.ACK:
             ack(action.result, action.reason)
-        elif action.kind == "vehicle":
+        elif action.kind == Kind.VEHICLE:
             self.ros.vehicle_command(action.fields, ack)
-        elif action.kind == "mission":
+        elif action.kind == Kind.MISSION:
             self.ros.mission_control(action.fields, ack)
-        elif action.kind == "interval":
+        elif action.kind == Kind.INTERVAL:
             try:
                 for sched in self.schedulers.values():
                     sched.set_interval(action.fields["msg_id"], action.fields["interval_us"], time.monotonic())
                 ack(M.MAV_RESULT_ACCEPTED)
             except ValueError as exc:
                 ack(M.MAV_RESULT_DENIED, str(exc))
-        elif action.kind == "request":
+        elif action.kind == Kind.REQUEST:
             reply = self.one_shot(action.fields["msg_id"])
             # DENIED without a STATUSTEXT: GCSs probe many optional messages; no log noise for each
             ack(M.MAV_RESULT_ACCEPTED if reply is not None else M.MAV_RESULT_DENIED)

@@ -264,9 +264,8 @@ class RosSide:
                    if r is None else ack(r.result, r.message))
 
     def mission_control(self, fields: dict, ack) -> None:
-        action = MissionAction[fields["action"].upper()]  # "start" | "resume" | "clear" | "set_current"
         item = max(0, int(fields.get("item", 0)))
-        self._call(self.control, self.MissionControl.Request(action=action, item=item),
+        self._call(self.control, self.MissionControl.Request(action=fields["action"], item=item),
                    lambda r: ack(M.MAV_RESULT_TEMPORARILY_REJECTED, "mission node not reachable") if r is None
                    else ack(r.result, r.message))
 
@@ -283,7 +282,7 @@ class RosSide:
         if not items:
             if self.snapshot.mission_state == M.MISSION_STATE_ACTIVE:
                 return finish(M.MAV_MISSION_DENIED)
-            return self.mission_control({"action": "clear"}, lambda r, reason="": finish(
+            return self.mission_control({"action": MissionAction.CLEAR}, lambda r, reason="": finish(
                 M.MAV_MISSION_ACCEPTED if r == CommandResult.ACCEPTED else M.MAV_MISSION_DENIED))
         home_alt = self.snapshot.home[2] if self.snapshot.home else None
         try:
@@ -312,7 +311,7 @@ class RosSide:
         if mission_type in (MISSION, M.MAV_MISSION_TYPE_ALL):
             if self.snapshot.mission_state == M.MISSION_STATE_ACTIVE:
                 return M.MAV_MISSION_DENIED
-            self.mission_control({"action": "clear"}, lambda r, reason="": None)
+            self.mission_control({"action": MissionAction.CLEAR}, lambda r, reason="": None)
         if mission_type in (FENCE, M.MAV_MISSION_TYPE_ALL):
             self.fence = ()
         return M.MAV_MISSION_ACCEPTED
@@ -320,7 +319,7 @@ class RosSide:
     def set_current_item(self, seq: int) -> bool:
         if not 0 <= seq < len(self.missions.stored[MISSION]):
             return False
-        self.mission_control({"action": "set_current", "item": seq}, lambda r, reason="": None)
+        self.mission_control({"action": MissionAction.SET_CURRENT, "item": seq}, lambda r, reason="": None)
         return True
 
     def _param_client(self, node_name: str):

@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from enum import StrEnum
 
-from c4d_common.vehicle import Mode
+from c4d_common.vehicle import MissionAction, Mode
 from c4d_common.vehicle import VehicleCommandId as Cmd
 
 from .frames import AUTO_LAND, AUTO_LOITER, AUTO_MISSION, AUTO_RTL, AUTO_TAKEOFF, PX4_ACRO, PX4_AUTO, PX4_POSCTL, PX4_STABILIZED
@@ -33,16 +34,24 @@ class Context:
     mission_paused: bool = False  # the plan is active, possibly held (AUTO.LOITER): AUTO.MISSION resumes it
 
 
+class Kind(StrEnum):
+    VEHICLE = "vehicle"  # fields: vehicle/command request (command, altitude, mode, force, latitude, ...)
+    MISSION = "mission"  # fields: mission/control request (action: MissionAction, item)
+    INTERVAL = "interval"  # fields: msg_id, interval_us
+    REQUEST = "request"  # fields: msg_id
+    ACK = "ack"  # answer at once with `result` / `reason`
+
+
 @dataclass
 class Action:
-    kind: str  # "vehicle" | "mission" | "interval" | "request" | "ack"
-    result: int = M.MAV_RESULT_ACCEPTED  # for "ack"
+    kind: Kind
+    result: int = M.MAV_RESULT_ACCEPTED  # for Kind.ACK
     reason: str = ""
     fields: dict = field(default_factory=dict)
 
 
 def _deny(reason: str) -> Action:
-    return Action("ack", M.MAV_RESULT_DENIED, reason)
+    return Action(Kind.ACK, M.MAV_RESULT_DENIED, reason)
 
 
 def _finite(*values: float) -> bool:
@@ -67,7 +76,7 @@ def translate(msg, ctx: Context) -> Action:
     if c == M.MAV_CMD_COMPONENT_ARM_DISARM:
         if p[0] not in (0.0, 1.0):
             return _deny("param1 must be 1 (arm) or 0 (disarm)")
-        return Action("vehicle", fields={"command": Cmd.ARM if p[0] == 1.0 else Cmd.DISARM, "force": p[1] == FORCE_KEY})
+        return Action(Kind.VEHICLE, fields={"command": Cmd.ARM if p[0] == 1.0 else Cmd.DISARM, "force": p[1] == FORCE_KEY})
     if c == M.MAV_CMD_NAV_TAKEOFF:
         altitude = ctx.takeoff_altitude
         if _finite(p[6]):
@@ -76,19 +85,19 @@ def translate(msg, ctx: Context) -> Action:
             elif ctx.home is not None:
                 altitude = p[6] - ctx.home[2]
             else:
-                return Action("ack", M.MAV_RESULT_TEMPORARILY_REJECTED, "no home position yet")
+                return Action(Kind.ACK, M.MAV_RESULT_TEMPORARILY_REJECTED, "no home position yet")
         if not 0.5 <= altitude <= 120.0:
             return _deny(f"take-off altitude {altitude:.1f} m above home outside [0.5, 120]")
-        return Action("vehicle", fields={"command": Cmd.TAKEOFF, "altitude": float(altitude)})
+        return Action(Kind.VEHICLE, fields={"command": Cmd.TAKEOFF, "altitude": float(altitude)})
     if c == M.MAV_CMD_NAV_LAND:
-        return Action("vehicle", fields={"command": Cmd.LAND})
+        return Action(Kind.VEHICLE, fields={"command": Cmd.LAND})
     if c == M.MAV_CMD_NAV_RETURN_TO_LAUNCH:
-        return Action("vehicle", fields={"command": Cmd.RETURN_TO_LAUNCH})
+        return Action(Kind.VEHICLE, fields={"command": Cmd.RETURN_TO_LAUNCH})
     if c == M.MAV_CMD_NAV_LOITER_UNLIM and not _finite(p[4]):
-        return Action("vehicle", fields={"command": Cmd.HOLD})
+        return Action(Kind.VEHICLE, fields={"command": Cmd.HOLD})
     if c == M.MAV_CMD_MISSION_START:
         first = int(p[0]) if _finite(p[0]) and p[0] >= 0 else 0
-        return Action("mission", fields={"action": "start", "item": first})
+        return Action(Kind.MISSION, fields={"action": MissionAction.START, "item": first})
     if c == M.MAV_CMD_DO_SET_MODE:
         return _set_mode(p, ctx)
     if c == M.MAV_CMD_DO_REPOSITION:
@@ -96,14 +105,14 @@ def translate(msg, ctx: Context) -> Action:
     if c == M.MAV_CMD_SET_MESSAGE_INTERVAL:
         if not (_finite(p[0], p[1]) and p[0] == int(p[0]) and 0 < p[0] < 1 << 24):
             return _deny("param1 must be a message id")
-        return Action("interval", fields={"msg_id": int(p[0]), "interval_us": p[1]})
+        return Action(Kind.INTERVAL, fields={"msg_id": int(p[0]), "interval_us": p[1]})
     if c == M.MAV_CMD_REQUEST_MESSAGE:
         if not (_finite(p[0]) and p[0] == int(p[0]) and 0 < p[0] < 1 << 24):
             return _deny("param1 must be a message id")
-        return Action("request", fields={"msg_id": int(p[0])})
+        return Action(Kind.REQUEST, fields={"msg_id": int(p[0])})
     if c == M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
-        return Action("request", fields={"msg_id": M.MAVLINK_MSG_ID_AUTOPILOT_VERSION})
-    return Action("ack", M.MAV_RESULT_UNSUPPORTED, f"command {c} not supported")
+        return Action(Kind.REQUEST, fields={"msg_id": M.MAVLINK_MSG_ID_AUTOPILOT_VERSION})
+    return Action(Kind.ACK, M.MAV_RESULT_UNSUPPORTED, f"command {c} not supported")
 
 
 def _set_mode(p: list[float], ctx: Context) -> Action:
@@ -112,17 +121,18 @@ def _set_mode(p: list[float], ctx: Context) -> Action:
     main, sub = int(p[1]), int(p[2]) if _finite(p[2]) else 0
     if main == PX4_AUTO:
         if sub == AUTO_MISSION:
-            return Action("mission", fields={"action": "resume" if ctx.mission_paused else "start", "item": -1})
+            return Action(Kind.MISSION, fields={"action": MissionAction.RESUME if ctx.mission_paused else MissionAction.START,
+                                             "item": -1})
         vehicle = {AUTO_LOITER: Cmd.HOLD, AUTO_RTL: Cmd.RETURN_TO_LAUNCH, AUTO_LAND: Cmd.LAND}.get(sub)
         if sub == AUTO_TAKEOFF:
-            return Action("vehicle", fields={"command": Cmd.TAKEOFF, "altitude": float(ctx.takeoff_altitude)})
+            return Action(Kind.VEHICLE, fields={"command": Cmd.TAKEOFF, "altitude": float(ctx.takeoff_altitude)})
         if vehicle is not None:
-            return Action("vehicle", fields={"command": vehicle})
+            return Action(Kind.VEHICLE, fields={"command": vehicle})
         return _deny(f"AUTO sub mode {sub} not supported")
     mode = {PX4_POSCTL: Mode.POSITION, PX4_STABILIZED: Mode.ATTITUDE, PX4_ACRO: Mode.RATE}.get(main)
     if mode is None:
         return _deny(f"main mode {main} not supported")
-    return Action("vehicle", fields={"command": Cmd.SET_MODE, "mode": mode})
+    return Action(Kind.VEHICLE, fields={"command": Cmd.SET_MODE, "mode": mode})
 
 
 def _reposition(p: list[float], relative: bool, ctx: Context) -> Action:
@@ -130,11 +140,11 @@ def _reposition(p: list[float], relative: bool, ctx: Context) -> Action:
     if not _finite(lat, lon) or not (-90 <= lat <= 90 and -180 <= lon <= 180):
         return _deny("reposition needs a valid latitude and longitude")
     if ctx.home is None:
-        return Action("ack", M.MAV_RESULT_TEMPORARILY_REJECTED, "no home position yet")
+        return Action(Kind.ACK, M.MAV_RESULT_TEMPORARILY_REJECTED, "no home position yet")
     if not _finite(alt):
         alt_rel = math.nan  # keep the current altitude: the node fills it in
     else:
         alt_rel = alt if relative else alt - ctx.home[2]
     yaw = math.radians(90.0 - p[3]) if _finite(p[3]) else math.nan
-    return Action("vehicle", fields={"command": Cmd.GOTO, "latitude": lat, "longitude": lon, "altitude": alt_rel,
+    return Action(Kind.VEHICLE, fields={"command": Cmd.GOTO, "latitude": lat, "longitude": lon, "altitude": alt_rel,
                                      "yaw": yaw})

@@ -17,7 +17,7 @@ from c4d_bridge_mavlink.params import ParamServer
 from c4d_bridge_mavlink.signing import mavlink as M
 from c4d_bridge_mavlink.transport import Router
 from c4d_common import quat
-from c4d_common.vehicle import Mode, Nav, VehicleCommandId
+from c4d_common.vehicle import MissionAction, Mode, Nav, VehicleCommandId
 
 GCS = M.MAVLink(None, 255, 190)
 
@@ -157,7 +157,7 @@ def test_command_translation():
     assert rtl.fields == {"command": VehicleCommandId.RETURN_TO_LAUNCH}
     assert translate(cmd_long(M.MAV_CMD_DO_SET_MODE, 0, 4, 5), ctx).result == M.MAV_RESULT_DENIED
     mission = translate(cmd_long(M.MAV_CMD_DO_SET_MODE, 1, 4, 4), Context(ctx.home, 5.0, mission_paused=True))
-    assert mission.kind == "mission" and mission.fields["action"] == "resume"
+    assert mission.kind == "mission" and mission.fields["action"] == MissionAction.RESUME
     repo = translate(from_gcs(M.MAVLink_command_int_message(1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
                                                             M.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0, 90.0,
                                                             435001000, 14801000, 7.0)), ctx)
