@@ -83,7 +83,7 @@ P_GPS = Topic("perception/gps", "sensor_msgs/msg/NavSatFix", S, "10 Hz", ("perce
 P_BARO = Topic("perception/baro", "sensor_msgs/msg/FluidPressure", S, "50 Hz", ("perception",), ("navigation",))
 P_MAG = Topic("perception/mag", "sensor_msgs/msg/MagneticField", S, "50 Hz", ("perception",), ("navigation",))
 P_RANGE_DOWN = Topic("perception/range_down", "sensor_msgs/msg/Range", S, "50 Hz", ("perception",), ("navigation",))
-P_HEALTH = Topic("perception/health", "diagnostic_msgs/msg/DiagnosticArray", STATS, "2 Hz", ("perception",),
+P_HEALTH = Topic("perception/health", "diagnostic_msgs/msg/DiagnosticArray", STATS, "5 Hz", ("perception",),
                  ("health", "mission"), "sensor health")
 # --- navigation ---------------------------------------------------------------------------
 NAV_STATE = Topic("navigation/state", "c4d_interfaces/msg/VehicleState", ST, "500 Hz (per IMU sample)", ("navigation",),
@@ -96,7 +96,7 @@ SETPOINT = Topic("guidance/setpoint", "c4d_interfaces/msg/GuidanceSetpoint", ST,
                  ("mission", "bridge"), ("core",), "mission: position level; bridge: pilot attitude / rate level")
 ACTUATORS = Topic("control/actuators", "c4d_interfaces/msg/ActuatorCommand", ST, "every tick (500 Hz)", ("core",), ("sim",),
                   "the core is the only publisher")
-STATUS = Topic("vehicle/status", "c4d_interfaces/msg/VehicleStatus", L, "on change + 2 Hz (checked at 10 Hz)", ("core",),
+STATUS = Topic("vehicle/status", "c4d_interfaces/msg/VehicleStatus", L, "on change + 5 Hz (the heartbeat health watches)", ("core",),
                ("navigation", "mission", "payload", "health", "bridge"), "armed, mode, landed state, failsafe")
 EXECUTOR_STATS = Topic("gnc/executor_stats", "c4d_interfaces/msg/ExecutorStats", STATS, "1 Hz", ("core",),
                        ("health", "bridge"), "cyclic-executive profiler")
