@@ -96,7 +96,8 @@ SETPOINT = Topic("guidance/setpoint", "c4d_interfaces/msg/GuidanceSetpoint", ST,
                  ("mission", "bridge"), ("core",), "mission: position level; bridge: pilot attitude / rate level")
 ACTUATORS = Topic("control/actuators", "c4d_interfaces/msg/ActuatorCommand", ST, "every tick (500 Hz)", ("core",), ("sim",),
                   "the core is the only publisher")
-STATUS = Topic("vehicle/status", "c4d_interfaces/msg/VehicleStatus", L, "on change + 5 Hz (the heartbeat health watches)", ("core",),
+STATUS = Topic("vehicle/status", "c4d_interfaces/msg/VehicleStatus", L, "on change + 5 Hz (health's heartbeat)",
+               ("core",),
                ("navigation", "mission", "payload", "health", "bridge"), "armed, mode, landed state, failsafe")
 EXECUTOR_STATS = Topic("gnc/executor_stats", "c4d_interfaces/msg/ExecutorStats", STATS, "1 Hz", ("core",),
                        ("health", "bridge"), "cyclic-executive profiler")
