@@ -9,9 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
 from c4d_common.airframe import Airframe, AirframeError, default_airframe_path, load_airframe
+from c4d_common.config_file import ConfigError, read_yaml_mapping, reject_unknown
 from c4d_common.share import share_file
 from c4d_sched.tickschedule import ScheduleConfigError, TickSchedule, schedule_from_config
 
@@ -21,7 +20,7 @@ KNOWN_TASKS = (*GncCore.TASKS, "status")
 REQUIRED_TASKS = ("state_update", "guidance", "position_control", "attitude_control", "rate_control", "mixer")
 
 
-class CoreConfigError(ValueError):
+class CoreConfigError(ConfigError):
     """Invalid core configuration (one line)."""
 
 
@@ -40,17 +39,8 @@ def default_config_path() -> Path:
 def load_core_config(path: str | Path | None = None, airframe: str | None = None,
                      phase_method: str | None = None) -> CoreConfig:
     path = Path(path) if path else default_config_path()
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise CoreConfigError(f"cannot read core config {path}: {exc.strerror}") from None
-    except yaml.YAMLError:
-        raise CoreConfigError(f"core config {path}: malformed YAML") from None
-    if not isinstance(doc, dict):
-        raise CoreConfigError(f"core config {path}: must be a mapping")
-    unknown = set(doc) - {"airframe", "executive"}
-    if unknown:
-        raise CoreConfigError(f"core config: unknown field(s) {', '.join(sorted(unknown))}")
+    doc = read_yaml_mapping(path, "core config", CoreConfigError)
+    reject_unknown(doc, {"airframe", "executive"}, "core config", CoreConfigError)
     name = airframe or doc.get("airframe", "quad_x")
     try:
         frame_path = Path(name) if str(name).endswith((".yaml", ".yml")) else default_airframe_path(str(name))
