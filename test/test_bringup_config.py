@@ -47,7 +47,7 @@ def test_bundled_sitl_config_is_the_whole_graph():
     assert [n.name for n in config.nodes if n.critical] == ["sim", "perception", "navigation", "core"]
     assert all(n.restart == "always" for n in config.nodes if not n.critical)
     assert config.node("core").parameters == {"rt_priority": 50}
-    assert config.platform == "sitl" and config.discovery_range == "LOCALHOST"
+    assert config.platform == "sitl" and config.discovery_range == "LOCALHOST" and config.restart_spacing_s == 2.0
     # every node's executable resolves exactly where `ros2 run <pkg> <exe>` looks
     for name, path in resolve_all(config).items():
         node = config.node(name)
@@ -66,7 +66,8 @@ def test_defaults_flattening_and_substitution():
     assert substitute("${run}/captures", {"run": "/r"}) == "/r/captures"
     assert substitute(["${config_dir}/a", 3], {"config_dir": "/c"}) == ["/c/a", 3]
     disabled = parse({"nodes": {"sim": {}, "bridge": {"enabled": False}}})
-    assert disabled.names == ["sim"]
+    assert disabled.names == ["sim"] and disabled.restart_spacing_s == 2.0  # the default
+    assert parse({"restart_spacing_s": 0, "nodes": {"sim": {}}}).restart_spacing_s == 0.0  # no stagger
 
 
 def test_child_environment_forces_discovery_range_and_keeps_domain():
@@ -96,6 +97,8 @@ def test_child_environment_forces_discovery_range_and_keeps_domain():
     ({"discovery_range": "WORLD", "nodes": {"sim": {}}}, "discovery_range must be one of"),
     ({"shutdown_timeout_s": 0, "nodes": {"sim": {}}}, "shutdown_timeout_s must be a number >= 0.5"),
     ({"nodes": {"sim": {"enabled": False}}}, "every node is disabled"),
+    ({"restart_spacing_s": -1, "nodes": {"sim": {}}}, "restart_spacing_s must be a number >= 0"),
+    ({"restart_spacing_s": 61, "nodes": {"sim": {}}}, "restart_spacing_s must be <= 60 s"),
 ])
 def test_bad_configs_are_one_line_errors(doc, expected):
     assert expected in error_of(doc)

@@ -13,6 +13,8 @@ import textwrap
 import time
 from pathlib import Path
 
+import pytest
+
 from c4d_bringup.supervisor import ProcessSpec, RestartPolicy, Supervisor
 
 PY = sys.executable
@@ -128,6 +130,64 @@ def test_restart_limit_back_off_and_policies(tmp_path):
     assert sup.failure is None  # none of them critical
     assert (tmp_path / "logs" / "crashy.log").read_text().count("--- c4d: start #") == 4
     sup.stop(timeout=5)
+
+
+def test_restarts_are_staggered_by_the_global_spacing(tmp_path):
+    """Two nodes killed together restart restart_spacing_s apart (injected clock), each after its own back-off."""
+    now = [100.0]
+    events: list[str] = []
+    sup = Supervisor([spec(tmp_path, n, ["sleep", "60"], mode="always", backoff_s=1.0) for n in ("recorder", "bridge", "core")],
+                     os.environ, log=events.append, clock=lambda: now[0], restart_spacing_s=2.0)
+    sup.start()
+    first = {n: sup.pid(n) for n in ("recorder", "bridge")}
+    now[0] = 101.0  # the initial start-up counts as a start: a restart before 102.0 would wait
+    for pid in first.values():
+        os.kill(pid, signal.SIGKILL)
+    assert poll_until(sup, lambda: sup.pid("recorder") is None and sup.pid("bridge") is None, 5)  # both reaped at 101.0
+
+    def started() -> list[str]:
+        return sorted(n for n, pid in first.items() if sup.pid(n) not in (None, pid))
+
+    now[0] = 101.9  # back-off (1 s) not over yet
+    sup.poll()
+    assert started() == []
+    now[0] = 102.0  # both due: the first in start order goes, the other waits for the spacing
+    sup.poll()
+    assert started() == ["recorder"]
+    assert "bridge: restart deferred 2.0 s (restart spacing 2 s)" in events
+    now[0] = 103.99
+    sup.poll()
+    assert started() == ["recorder"]
+    now[0] = 104.0
+    sup.poll()
+    assert started() == ["bridge", "recorder"] and sup.pid("core") is not None and sup.failure is None
+    assert sum("restart deferred" in e for e in events) == 1  # logged once, not per poll
+    # a later lone restart is not delayed once the spacing has passed: only its own back-off counts
+    now[0] = 110.0
+    bridge = sup.pid("bridge")
+    os.kill(bridge, signal.SIGKILL)
+    assert poll_until(sup, lambda: sup.pid("bridge") is None, 5)
+    now[0] = 112.0  # second consecutive restart of bridge: back-off doubled to 2 s
+    sup.poll()
+    assert sup.pid("bridge") not in (None, bridge)
+    sup.stop(timeout=5)
+
+
+def test_zero_spacing_restarts_together_and_negative_is_refused(tmp_path):
+    now = [0.0]
+    sup = Supervisor([spec(tmp_path, n, ["sleep", "60"], mode="always", backoff_s=0.5) for n in ("a", "b")],
+                     os.environ, log=lambda text: None, clock=lambda: now[0])
+    sup.start()
+    first = [sup.pid("a"), sup.pid("b")]
+    for pid in first:
+        os.kill(pid, signal.SIGKILL)
+    assert poll_until(sup, lambda: sup.running() == [], 5)
+    now[0] = 0.5
+    sup.poll()
+    assert all(sup.pid(n) not in (None, old) for n, old in zip(("a", "b"), first, strict=True))
+    sup.stop(timeout=5)
+    with pytest.raises(ValueError, match="restart_spacing_s must be >= 0"):
+        Supervisor([], os.environ, restart_spacing_s=-1.0)
 
 
 def test_critical_exit_is_a_failure(tmp_path):

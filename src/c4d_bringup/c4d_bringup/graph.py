@@ -75,7 +75,8 @@ def run_graph(config: SystemConfig, specs: list[ProcessSpec], env: Mapping[str, 
         signals.append(signum)
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
-    supervisor = Supervisor(specs, env, log=log, state_file=run_dir / "supervisor.json")
+    supervisor = Supervisor(specs, env, log=log, state_file=run_dir / "supervisor.json",
+                            restart_spacing_s=config.restart_spacing_s)
     try:
         supervisor.start()
         log(f"up: {len(specs)} nodes, logs in {run_dir / 'logs'} (Ctrl-C to stop)")

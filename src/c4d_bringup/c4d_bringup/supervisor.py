@@ -5,7 +5,11 @@ the supervisor only, which then stops the children in order) with stdout and std
 to its log file, and with PR_SET_PDEATHSIG = SIGTERM so that even a supervisor killed with
 SIGKILL leaves no orphan behind (Linux). Restart policy per process: never | on-failure (exit
 code != 0 or a signal) | always, after a back-off doubled per consecutive restart (capped),
-at most `max_restarts` within `restart_window_s`; past that the process stays down. A critical
+at most `max_restarts` within `restart_window_s`; past that the process stays down. Restarts are
+also staggered globally: two (re)starts are at least `restart_spacing_s` apart (the initial
+start-up counts as one), so nodes that died together come back one at a time — each start of a
+DDS participant sets off a discovery burst that every other node has to process, and several at
+once used to stall the flight-critical ones. A critical
 process that exits (or gives up) marks the supervisor failed, which the caller turns into a
 shutdown. stop(): SIGINT to every group, wait up to the timeout, SIGKILL what is left and any
 stray grandchild of each group.
@@ -60,6 +64,7 @@ class _Child:
     restarts: deque = field(default_factory=deque)  # monotonic times of restarts in the window
     consecutive: int = 0
     restart_at: float | None = None
+    deferred: bool = False  # its due restart waits for the global restart spacing (logged once)
     last_exit: int | None = None
     gave_up: bool = False
 
@@ -91,7 +96,10 @@ class Supervisor:
     """Start, watch, restart and stop a set of processes (see the module docstring)."""
 
     def __init__(self, specs: Sequence[ProcessSpec], env: Mapping[str, str], log: Callable[[str], None] = print,
-                 state_file: Path | None = None, clock: Callable[[], float] = time.monotonic) -> None:
+                 state_file: Path | None = None, clock: Callable[[], float] = time.monotonic,
+                 restart_spacing_s: float = 0.0) -> None:
+        if restart_spacing_s < 0:
+            raise ValueError(f"restart_spacing_s must be >= 0, not {restart_spacing_s}")
         names = [s.name for s in specs]
         if len(set(names)) != len(names):
             raise ValueError(f"duplicate process names in {names}")
@@ -100,6 +108,8 @@ class Supervisor:
         self.log = log
         self.state_file = state_file
         self.clock = clock
+        self.restart_spacing_s = restart_spacing_s
+        self.last_start: float | None = None  # clock time of the latest (re)start, for the spacing
         self.failure: str | None = None  # why a critical process ended the run
         self.stopping = False
 
@@ -107,6 +117,7 @@ class Supervisor:
     def start(self) -> None:
         for child in self.children.values():
             self._spawn(child)
+        self.last_start = self.clock()
         self._write_state()
 
     def _spawn(self, child: _Child) -> None:
@@ -127,6 +138,7 @@ class Supervisor:
                 return
         child.starts += 1
         child.restart_at = None
+        child.deferred = False
         self.log(f"{spec.name}: started (pid {child.proc.pid})" if child.starts == 1 else
                  f"{spec.name}: restarted (pid {child.proc.pid}, restart {len(child.restarts)}/{spec.restart.max_restarts})")
 
@@ -145,11 +157,34 @@ class Supervisor:
                     child.last_exit = code
                     self._handle_exit(child, code)
                     changed = True
-            elif child.restart_at is not None and now >= child.restart_at and self.failure is None:
-                self._spawn(child)
-                changed = True
+        changed = self._restart_due(now) or changed
         if changed:
             self._write_state()
+
+    def _restart_due(self, now: float) -> bool:
+        """Start the due restarts, earliest due first, each at least restart_spacing_s after the previous start."""
+        if self.failure is not None:
+            return False
+        due = sorted((c for c in self.children.values() if c.proc is None and c.restart_at is not None and now >= c.restart_at),
+                     key=lambda c: c.restart_at or 0.0)
+        started = False
+        for child in due:
+            wait = self.spacing_wait(now)
+            if wait > 0:
+                if not child.deferred:
+                    child.deferred = True
+                    self.log(f"{child.spec.name}: restart deferred {wait:.1f} s (restart spacing {self.restart_spacing_s:g} s)")
+                continue
+            self._spawn(child)
+            self.last_start = now
+            started = True
+        return started
+
+    def spacing_wait(self, now: float) -> float:
+        """Seconds until the global restart spacing allows another start (0: now)."""
+        if self.last_start is None:
+            return 0.0
+        return max(0.0, self.last_start + self.restart_spacing_s - now)
 
     def _handle_exit(self, child: _Child, code: int) -> None:
         spec, now = child.spec, self.clock()

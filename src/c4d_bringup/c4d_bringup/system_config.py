@@ -8,6 +8,7 @@ same processes with the same parameters. Format (the bundled config/sitl.yaml is
     discovery_range: LOCALHOST     # ROS_AUTOMATIC_DISCOVERY_RANGE of every node (env C4D_DISCOVERY_RANGE overrides)
     run_root: c4d_runs             # each run writes <run_root>/<UTC stamp>/ (logs, params, flights, captures, report)
     shutdown_timeout_s: 10         # SIGINT, then SIGKILL after this long
+    restart_spacing_s: 2.0         # at least this long between any two (re)starts: restarts are staggered
     nodes:                         # started in this order, each in its own process
       core:                        # a known node name (see CATALOGUE) ...
         critical: true             # its death stops the whole graph (default: see CATALOGUE)
@@ -38,6 +39,7 @@ from typing import Any
 import yaml
 
 from c4d_common.share import share_file
+from c4d_ros.dds_profile import with_profile
 
 # node name -> (package, executable, critical by default)
 CATALOGUE: dict[str, tuple[str, str, bool]] = {
@@ -54,7 +56,8 @@ CATALOGUE: dict[str, tuple[str, str, bool]] = {
 PLATFORMS = ("sitl", "hardware")
 RESTART_MODES = ("never", "on-failure", "always")
 DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT", "OFF")
-TOP_KEYS = {"platform", "discovery_range", "run_root", "shutdown_timeout_s", "nodes"}
+TOP_KEYS = {"platform", "discovery_range", "run_root", "shutdown_timeout_s", "restart_spacing_s", "nodes"}
+RESTART_SPACING_S = 2.0  # default: a DDS participant's discovery burst is over well within 2 s on localhost
 NODE_KEYS = {"package", "executable", "critical", "restart", "max_restarts", "restart_window_s", "backoff_s",
              "enabled", "parameters"}
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -88,6 +91,7 @@ class SystemConfig:
     run_root: str
     shutdown_timeout_s: float
     nodes: tuple[NodeConfig, ...]
+    restart_spacing_s: float = RESTART_SPACING_S  # minimum time between any two (re)starts [s]
 
     def node(self, name: str) -> NodeConfig | None:
         return next((n for n in self.nodes if n.name == name), None)
@@ -139,6 +143,9 @@ def parse_system_config(doc: Any, path: Path) -> SystemConfig:
     if not isinstance(run_root, str) or not run_root:
         raise ConfigError(f"{w}: run_root must be a non-empty path")
     timeout = _number(doc.get("shutdown_timeout_s", 10.0), f"{w}: shutdown_timeout_s", minimum=0.5)
+    spacing = _number(doc.get("restart_spacing_s", RESTART_SPACING_S), f"{w}: restart_spacing_s", minimum=0.0)
+    if spacing > 60.0:
+        raise ConfigError(f"{w}: restart_spacing_s must be <= 60 s, not {spacing:g}")
     nodes_doc = doc.get("nodes")
     if not isinstance(nodes_doc, dict) or not nodes_doc:
         raise ConfigError(f"{w}: 'nodes' must be a non-empty mapping of node name -> settings")
@@ -154,7 +161,7 @@ def parse_system_config(doc: Any, path: Path) -> SystemConfig:
         raise ConfigError(f"{w}: platform sitl needs the 'sim' node (or use platform: hardware)")
     if platform == "hardware" and "sim" in names:
         raise ConfigError(f"{w}: platform hardware must not run the 'sim' node")
-    return SystemConfig(path.resolve(), platform, discovery, run_root, timeout, tuple(nodes))
+    return SystemConfig(path.resolve(), platform, discovery, run_root, timeout, tuple(nodes), spacing)
 
 
 def _parse_node(name: Any, entry: Any, w: str) -> NodeConfig | None:
@@ -297,7 +304,7 @@ def resolve_executable(node: NodeConfig) -> Path:
 
 def child_environment(config: SystemConfig, base: Mapping[str, str]) -> dict[str, str]:
     """Environment of every node: the caller's (ROS_DOMAIN_ID, test tokens, paths) with the discovery range set."""
-    env = dict(base)
+    env = with_profile(base)  # loopback-UDP Fast DDS profile (docs/dds.md)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = base.get("C4D_DISCOVERY_RANGE") or config.discovery_range
     env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
     env["PYTHONUNBUFFERED"] = "1"
