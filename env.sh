@@ -55,6 +55,14 @@ _c4d_env() {
     # DDS discovery stays on this machine unless C4D_DISCOVERY_RANGE says otherwise (deployment).
     export ROS_AUTOMATIC_DISCOVERY_RANGE=${C4D_DISCOVERY_RANGE:-LOCALHOST}
     export RMW_IMPLEMENTATION=${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}
+    # Fast DDS profile: user data over loopback UDP, never shared memory (docs/dds.md: a dead or new
+    # participant made publish() block in the flight-critical nodes). C4D_FASTDDS_PROFILE= disables it.
+    local profile=${C4D_FASTDDS_PROFILE-$root/src/c4d_ros/config/fastdds_profile.xml}
+    if [ -n "$profile" ]; then
+        export FASTRTPS_DEFAULT_PROFILES_FILE=$profile
+    else
+        unset FASTRTPS_DEFAULT_PROFILES_FILE
+    fi
     return $status
 }
 _c4d_env

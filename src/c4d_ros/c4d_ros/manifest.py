@@ -76,6 +76,8 @@ BATTERY = Topic("sensors/battery", "sensor_msgs/msg/BatteryState", S, "10 Hz", (
                 "also read by the c4d CLI")
 GROUND_TRUTH = Topic("sim/ground_truth", "nav_msgs/msg/Odometry", S, "100 Hz", ("sim",), (),
                      "true state in `map` (tests, analysis)")
+ACTUATOR_LINK = Topic("sim/actuator_link", "diagnostic_msgs/msg/DiagnosticStatus", STATS, "1 Hz", ("sim",), (),
+                      "gaps in control/actuators as the vehicle received them: worst, p99.9, > 20 ms (tests, bench)")
 # --- perception ---------------------------------------------------------------------------
 P_IMU = Topic("perception/imu", "sensor_msgs/msg/Imu", S, "500 Hz", ("perception",), ("navigation", "core"),
               "validated, calibrated; the core takes the gyro")
@@ -124,7 +126,7 @@ RECORDER_STATUS = Topic("recorder/status", "diagnostic_msgs/msg/DiagnosticStatus
                         (), "state, file, written, dropped; the c4d CLI and tests")
 
 TOPICS: tuple[Topic, ...] = (
-    IMU, GPS, BARO, MAG, RANGE_DOWN, BATTERY, GROUND_TRUTH,
+    IMU, GPS, BARO, MAG, RANGE_DOWN, BATTERY, GROUND_TRUTH, ACTUATOR_LINK,
     P_IMU, P_GPS, P_BARO, P_MAG, P_RANGE_DOWN, P_HEALTH,
     NAV_STATE, NAV_ODOMETRY,
     SETPOINT, ACTUATORS, STATUS, EXECUTOR_STATS, SCHEDULE,

@@ -21,9 +21,11 @@ from __future__ import annotations
 
 import signal
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import BatteryState, FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
@@ -32,10 +34,11 @@ from c4d_interfaces.msg import ActuatorCommand
 from c4d_ros import manifest
 from c4d_ros.drain import Drainer
 from c4d_ros.params import ParameterError, Spec, declare, declare_all
-from c4d_ros.stamps import s_to_stamp
+from c4d_ros.stamps import s_to_stamp, stamp_to_s
 from c4d_sched.executive import CyclicExecutive, MonotonicClock
 from c4d_sched.tickschedule import build_schedule
 
+from .actuator_link import ActuatorLinkMonitor
 from .sensors import RANGE_MIN
 from .sim_config import SimConfig, SimConfigError, default_sim_config, load_sim_config
 from .simulation import SENSOR_TASKS, Simulation, task_specs
@@ -88,6 +91,9 @@ class SimNode:
         self.pub_range = node.create_publisher(Range, manifest.RANGE_DOWN.name, manifest.RANGE_DOWN.qos)
         self.pub_battery = node.create_publisher(BatteryState, manifest.BATTERY.name, manifest.BATTERY.qos)
         self.pub_truth = node.create_publisher(Odometry, manifest.GROUND_TRUTH.name, manifest.GROUND_TRUTH.qos)
+        self.pub_link = node.create_publisher(DiagnosticStatus, manifest.ACTUATOR_LINK.name, manifest.ACTUATOR_LINK.qos)
+        self.link = ActuatorLinkMonitor()
+        self.next_link_report = time.monotonic() + 1.0
         self.drainer = Drainer(node)
         self.drainer.subscription(ActuatorCommand, manifest.ACTUATORS.name, self.on_actuators, manifest.ACTUATORS.qos)
         self.drainer.adopt_node_services()  # fault injection via the parameter services, no executor needed
@@ -114,9 +120,23 @@ class SimNode:
 
     def on_actuators(self, msg: ActuatorCommand) -> None:
         self.sim.command(msg.outputs, msg.armed)
+        self.link.on_command(stamp_to_s(msg.header.stamp))
 
     def drain(self, k: int) -> None:
         self.drainer.drain()
+        now = time.monotonic()
+        if now >= self.next_link_report:
+            self.next_link_report = now + 1.0
+            self.publish_link_report()
+
+    def publish_link_report(self) -> None:
+        r = self.link.report()
+        m = DiagnosticStatus(level=DiagnosticStatus.OK, name="sim/actuator_link", hardware_id="sim",
+                             message=f"worst gap {r.max_gap_ms:.1f} ms, {r.long_gaps_total} gap(s) > 20 ms")
+        m.values = [KeyValue(key=key, value=f"{value:g}") for key, value in (
+            ("messages", r.messages_total), ("window_max_gap_ms", r.window_max_gap_ms), ("max_gap_ms", r.max_gap_ms),
+            ("p999_gap_ms", r.p999_gap_ms), ("gaps_over_20ms", r.long_gaps_total))]
+        self.pub_link.publish(m)
 
     def stamp(self, t: float):
         return s_to_stamp(self.sim.wall_epoch + t)
