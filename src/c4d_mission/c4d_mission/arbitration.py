@@ -30,7 +30,7 @@ from c4d_common.plan import GLOBAL, Geofence, Item, Plan
 from c4d_common.plan_validation import IssueKind, PlanIssue, ValidationResult, VehicleLimits, check_goto, validate
 from c4d_common.vehicle import Command, CommandResult, Landed, MissionAction, MissionStatus, VehicleCommandId
 
-from .executor import MissionExecutor, Output, Vehicle
+from .executor import Checkpoint, MissionExecutor, Output, Vehicle
 
 Vec = tuple[float, float, float]
 
@@ -96,6 +96,12 @@ class CommandArbiter:
         self._next_id += 1
         self.mission.load(plan, home)
         return Acceptance(plan, (), result.notices, result)
+
+    def restore(self, plan: Plan, home: GeoOrigin, checkpoint: Checkpoint, status: MissionStatus) -> None:
+        """Take back a plan persisted before a restart (already accepted then: not validated again);
+        later uploads get ids after its id."""
+        self.mission.restore(plan, home, checkpoint, status)
+        self._next_id = max(self._next_id, plan.plan_id + 1)
 
     def _rtl_altitude(self) -> float:
         return self.mission.plan.rtl_altitude if self.mission.plan else 0.0

@@ -20,6 +20,25 @@ from c4d_common.plan_validation import local_point
 from c4d_common.vehicle import Command, MissionStatus, Nav
 
 Vec = tuple[float, float, float]
+# phases that carry over a restart: the take-off asked of the core (wait for its climb, never ask
+# again) and a landing (asked, or about to be); any other phase restarts its item with a fresh leg
+# from where the vehicle is, as a resume after a pause does
+KEPT_PHASES = ("wait", "land", "landing")
+
+
+@dataclass(frozen=True)
+class Checkpoint:
+    """What a restarted mission node needs to continue a plan: the executor's progress through it."""
+
+    plan_id: int
+    status: MissionStatus
+    current: int
+    last_reached: int
+    speed: float  # [m/s] cruise speed in force (change_speed items passed so far)
+    phase: str  # "start" or one of KEPT_PHASES
+    camera_mode: str = "off"
+    camera_distance: float = 0.0  # [m]
+    captures_requested: int = 0
 
 
 @dataclass
@@ -99,6 +118,21 @@ class MissionExecutor:
         self.status, self.current, self.last_reached = MissionStatus.READY, 0, -1
         self.speed = plan.cruise_speed if plan.cruise_speed > 0 else self.default_speed
         self._phase = "start"
+
+    def checkpoint(self) -> Checkpoint:
+        """The progress to persist; equal checkpoints mean nothing worth persisting changed."""
+        c = self.camera
+        return Checkpoint(self.plan.plan_id if self.plan else 0, self.status, self.current, self.last_reached, self.speed,
+                          self._phase if self._phase in KEPT_PHASES else "start", c.mode, c.distance, c.captures_requested)
+
+    def restore(self, plan: Plan, home: GeoOrigin, checkpoint: Checkpoint, status: MissionStatus) -> None:
+        """Load `plan` at the progress of `checkpoint` with `status` (no core request is repeated
+        for a kept phase: a take-off in progress is waited for, not asked again)."""
+        self.load(plan, home)
+        self.status, self.current, self.last_reached = status, checkpoint.current, checkpoint.last_reached
+        self.speed = checkpoint.speed
+        self._phase = checkpoint.phase if checkpoint.phase in KEPT_PHASES else "start"
+        self.camera = CameraState(checkpoint.camera_mode, checkpoint.camera_distance, checkpoint.captures_requested)
 
     def clear(self) -> None:
         self.plan, self.status, self.current, self.last_reached = None, MissionStatus.NO_PLAN, 0, -1

@@ -10,16 +10,19 @@ the mission, resumed by mission/control resume). Publishes guidance/setpoint (50
 flies), mission/state (on change and at 2 Hz) and mission/plan (latched). Mode changes reach
 the core only through its latched gnc/command interface.
 Parameters: plan_file (loaded and validated once home is known), min_battery (0.2),
-hover_current_a (endurance estimate, 20 A).
+hover_current_a (endurance estimate, 20 A), state_file (the mission journal: plan and progress
+persisted on every change, so a restarted node resumes an active mission; empty: none).
 
 The node only maps ROS to logic: pre-arm checks (prearm.PreArmChecks), command arbitration and
-plan acceptance (arbitration.CommandArbiter), plan execution (executor.MissionExecutor).
+plan acceptance (arbitration.CommandArbiter), plan execution (executor.MissionExecutor), the
+journal and the resume decision after a restart (mission_journal).
 """
 
 from __future__ import annotations
 
 import math
 import sys
+import time
 from functools import partial
 from typing import Any
 
@@ -33,7 +36,7 @@ from c4d_common.geofence import LocalFence
 from c4d_common.plan import Plan, PlanError
 from c4d_common.plan_files import load_plan
 from c4d_common.plan_validation import flight_time_left
-from c4d_common.vehicle import Command, CommandResult, Landed, VehicleCommandId
+from c4d_common.vehicle import Command, CommandResult, FailsafeAction, Landed, MissionStatus, Mode, VehicleCommandId
 from c4d_interfaces.msg import GuidanceSetpoint, MissionPlan, MissionState, VehicleState, VehicleStatus
 from c4d_interfaces.srv import DownloadMission, MissionControl, UploadMission, VehicleCommand
 from c4d_ros import manifest as m
@@ -44,17 +47,21 @@ from c4d_ros.plan_msgs import plan_from_msg, plan_to_msg
 from c4d_ros.stamps import s_to_stamp
 
 from .arbitration import CommandArbiter, Decision, VehicleView, goto_target
-from .executor import MissionExecutor, Vehicle
+from .executor import Checkpoint, MissionExecutor, Vehicle
+from .mission_journal import JournalEntry, JournalError, MissionJournal, VehicleCheck, resume_status
 from .prearm import PreArmChecks, PreArmInputs
 
 TICK_S = 0.02  # guidance rate 50 Hz
 STATE_HEARTBEAT_S = 0.2  # mission/state also at 5 Hz when nothing changes (health's liveness)
+STATUS_WAIT_S = 3.0  # after a restart, how long a journalled active mission waits for the latched vehicle/status
 PARAMETERS = {
     "plan_file": Spec("", "plan loaded and validated once home is known (c4d YAML or QGC .plan path; empty: none)",
                       read_only=True),
     "min_battery": Spec(0.2, "remaining charge below which ARM / TAKEOFF is refused [fraction 0..1]", 0.0, 1.0,
                         read_only=True),
     "hover_current_a": Spec(20.0, "hover current for the plan's endurance estimate [A]", 0.1, 1000.0, read_only=True),
+    "state_file": Spec("", "mission journal: plan and progress, resumed after a restart [file path]; empty: no persistence",
+                       read_only=True),
 }
 
 
@@ -62,7 +69,8 @@ class MissionNode:
     """mission/* and vehicle/command services, guidance/setpoint and mission/state publishers over
     the ROS-free PreArmChecks and CommandArbiter."""
 
-    def __init__(self, node: Any, side_node: Any, plan_file: str, min_battery: float, hover_current_a: float) -> None:
+    def __init__(self, node: Any, side_node: Any, plan_file: str, min_battery: float, hover_current_a: float,
+                 state_file: str = "") -> None:
         self.node, self.plan_file, self.hover_current_a = node, plan_file, hover_current_a
         self.prearm = PreArmChecks(min_battery)
         self.arbiter = CommandArbiter()
@@ -70,9 +78,14 @@ class MissionNode:
         self.status: VehicleStatus | None = None
         self.battery: BatteryState | None = None
         self.sensor_ok: dict[str, bool] = {}  # perception/health: hardware id -> level OK
-        self.plan_file_tried = False
         self.last_state_key: tuple[int, int, int, int] | None = None
         self.last_state_pub = 0.0
+        self.journal = MissionJournal(state_file) if state_file else None
+        self.journalled: Checkpoint | None = None  # the last checkpoint written
+        self.journal_ok = True
+        self.pending = self._read_journal()  # a plan to take back once home (and the vehicle status) is known
+        self.status_deadline = time.monotonic() + STATUS_WAIT_S
+        self.plan_file_tried = self.pending is not None
         self.pub_setpoint = node.create_publisher(GuidanceSetpoint, m.SETPOINT.name, m.SETPOINT.qos)
         self.pub_state = node.create_publisher(MissionState, m.MISSION_STATE.name, m.MISSION_STATE.qos)
         self.pub_plan = node.create_publisher(MissionPlan, m.MISSION_PLAN.name, m.MISSION_PLAN.qos)
@@ -134,6 +147,60 @@ class MissionNode:
                     self.node.get_logger().error(f"plan_file {self.plan_file} rejected: {'; '.join(errors)}")
             except PlanError as exc:
                 self.node.get_logger().error(f"plan_file: {exc}")
+
+    # ------------------------------------------------------------------ journal
+    def _read_journal(self) -> JournalEntry | None:
+        if self.journal is None:
+            return None
+        try:
+            entry = self.journal.load()
+        except JournalError as exc:
+            self.node.get_logger().warning(f"mission journal unusable, starting clean: {exc}")
+            return None
+        return entry if entry is not None and entry.plan is not None else None
+
+    def _restore(self) -> bool:
+        """Take back the journalled plan once home is known and the vehicle status is in (or
+        STATUS_WAIT_S passed); True when done. Resumes an active mission only if the vehicle still
+        flies it (mission_journal.resume_status)."""
+        entry, home, st = self.pending, self._home(), self.status
+        if entry is None or entry.plan is None:
+            return True
+        if home is None or (st is None and time.monotonic() < self.status_deadline):
+            return False
+        self.pending = None
+        if self.arbiter.mission.plan is not None:  # a plan uploaded meanwhile is newer
+            return True
+        vehicle = None if st is None else VehicleCheck(bool(st.armed), Landed(st.landed_state), Mode(st.flight_mode),
+                                                       FailsafeAction(st.failsafe_action))
+        verdict = resume_status(entry.checkpoint.status, vehicle)
+        plan, k, n = entry.plan, entry.checkpoint.current, len(entry.plan.items)
+        self.arbiter.restore(plan, home, entry.checkpoint, verdict.status)
+        self.pub_plan.publish(plan_to_msg(plan))
+        log = self.node.get_logger()
+        if verdict.resumed:
+            log.info(f"resumed plan {plan.plan_id} '{plan.name}' at item {k}/{n} after restart")
+        elif entry.checkpoint.status == MissionStatus.ACTIVE:
+            log.warning(f"plan {plan.plan_id} '{plan.name}' restored at item {k}/{n} after restart, "
+                        f"not resumed: {verdict.reason}; mission {verdict.status.name.lower()}")
+        else:
+            log.info(f"plan {plan.plan_id} '{plan.name}' restored after restart ({verdict.reason})")
+        return True
+
+    def _write_journal(self) -> None:
+        """Persist the plan and progress when they changed since the last write (never per tick)."""
+        mission = self.arbiter.mission
+        checkpoint = mission.checkpoint()
+        if self.journal is None or checkpoint == self.journalled:
+            return
+        try:
+            self.journal.save(JournalEntry(mission.plan, checkpoint))
+            self.journalled, self.journal_ok = checkpoint, True
+        except OSError as exc:
+            if self.journal_ok:  # once per failure streak, retried at the next change
+                self.node.get_logger().warning(f"mission journal not written ({self.journal.path}): {exc}")
+            self.journal_ok = False
+            self.journalled = checkpoint
 
     # ------------------------------------------------------------------ services
     def _accept(self, plan: Plan) -> tuple[list[str], list[str]]:
@@ -220,6 +287,8 @@ class MissionNode:
         sample = self.state_sampler.latest()
         if sample is not None and sample is not self.state:
             self._on_state(sample)
+        if self.pending is not None and not self._restore():
+            return
         if self.state is None or self.status is None:
             return
         t = self._now()
@@ -233,6 +302,7 @@ class MissionNode:
         if key != self.last_state_key or t - self.last_state_pub >= STATE_HEARTBEAT_S:
             self.pub_state.publish(self._state_msg())
             self.last_state_key, self.last_state_pub = key, t
+        self._write_journal()
 
     def _state_msg(self) -> Any:
         mission = self.arbiter.mission
