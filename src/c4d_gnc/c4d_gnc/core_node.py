@@ -17,7 +17,6 @@ Bad configuration or parameter: one line on stderr, exit 2, nothing armed.
 
 from __future__ import annotations
 
-import os
 import signal
 import sys
 import time
@@ -51,7 +50,7 @@ PARAMS = {
                          read_only=True),
     "imu_topic": Spec(P_IMU.name, "gyro source of the rate loop [topic name]", read_only=True),
     "log_table": Spec(False, "print the profiler table with each report [bool]", read_only=True),
-    "rt_priority": Spec(0, "SCHED_FIFO priority of the process [0..99]; 0 = normal scheduling", 0, 99, read_only=True),
+    "rt_priority": node_runtime.RT_PRIORITY,
 }
 
 
@@ -164,7 +163,7 @@ class CoreNode:
         """Run the executive until SIGINT/SIGTERM, then command the motors to zero; returns 0."""
         signal.signal(signal.SIGINT, self._stop)
         signal.signal(signal.SIGTERM, self._stop)
-        self._apply_rt_priority()
+        node_runtime.apply_rt_priority(self.params.rt_priority, self.log)
         schedule = self.cfg.schedule
         self.pub_schedule.publish(conv.schedule_msg(schedule, self.cfg.executive_name, self.clock_s()))
         self.input_phase(0)  # warm-up outside the timed loop: first-call costs must not count as an overrun
@@ -182,16 +181,6 @@ class CoreNode:
 
     def _stop(self, signum, frame) -> None:
         self.executive.stop()
-
-    def _apply_rt_priority(self) -> None:
-        priority = self.params.rt_priority
-        if priority <= 0:
-            return
-        try:  # real-time FIFO scheduling: the executive preempts the rest of the graph on wake-up
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-            self.log.info(f"SCHED_FIFO priority {priority}")
-        except (PermissionError, OSError) as exc:
-            self.log.warning(f"rt_priority {priority} not applied ({exc}); running with normal priority")
 
     def _motors_to_zero(self) -> None:
         out = self.core.out

@@ -34,6 +34,7 @@ NAME = "navigation"
 PARAMS = {
     "odometry_rate_hz": Spec(50.0, "navigation/odometry publication rate [Hz]", 0.01, 1000.0, read_only=True),
     "mag_declination_deg": Spec(0.0, "magnetic declination, east positive [deg]", -180.0, 180.0, read_only=True),
+    "rt_priority": node_runtime.RT_PRIORITY,
     "events_executor": Spec(True, "spin with rclpy's EventsExecutor (less CPU) instead of the default executor [bool]",
                             read_only=True),
 }
@@ -152,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     except ParameterError as exc:
         return node_runtime.fail(NAME, str(exc), node)
     NavigationNode(node, params["odometry_rate_hz"], params["mag_declination_deg"])
-    return node_runtime.spin_node(node, params["events_executor"])
+    return node_runtime.spin_node(node, params["events_executor"], rt_priority=params["rt_priority"])
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ PARAMS = {
     "gyro_offset": Spec([0.0, 0.0, 0.0], "gyro bias removed from each sample, x y z [rad/s]", read_only=True),
     "accel_offset": Spec([0.0, 0.0, 0.0], "accelerometer bias removed from each sample, x y z [m/s²]", read_only=True),
     "accel_scale": Spec([1.0, 1.0, 1.0], "accelerometer scale factors applied after the bias, x y z [-]", read_only=True),
+    "rt_priority": node_runtime.RT_PRIORITY,
     "events_executor": Spec(True, "spin with rclpy's EventsExecutor (less CPU) instead of the default executor [bool]",
                             read_only=True),
 }
@@ -141,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     except ParameterError as exc:
         return node_runtime.fail(NAME, str(exc), node)
     PerceptionNode(node, calibration)
-    return node_runtime.spin_node(node, bool(params["events_executor"]))
+    return node_runtime.spin_node(node, bool(params["events_executor"]), rt_priority=params["rt_priority"])
 
 
 if __name__ == "__main__":

@@ -8,8 +8,14 @@ for high-rate topics than the default SingleThreadedExecutor (bench/loop_latency
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
+
+from .params import Spec
+
+RT_PRIORITY = Spec(0, "SCHED_FIFO priority of every thread of the process [0..99]; 0 = normal scheduling "
+                      "(the flight-critical nodes preempt the rest of the graph on a busy board)", 0, 99, read_only=True)
 
 
 def init(argv: list[str] | None):
@@ -30,12 +36,13 @@ def make_executor(events_executor: bool):
     return SingleThreadedExecutor()
 
 
-def spin_node(node, events_executor: bool, on_stop=None) -> int:
-    """Spin `node` until SIGINT/SIGTERM; call on_stop(); tear down; return 0."""
+def spin_node(node, events_executor: bool, on_stop=None, rt_priority: int = 0) -> int:
+    """Spin `node` (at `rt_priority`, see apply_rt_priority) until SIGINT/SIGTERM; call on_stop(); tear down; return 0."""
     import rclpy
 
     executor = make_executor(events_executor)
     executor.add_node(node)
+    apply_rt_priority(rt_priority, node.get_logger())
     stopping = []
 
     def stop(signum, frame) -> None:
@@ -64,3 +71,20 @@ def fail(name: str, message: str, node=None) -> int:
         node.destroy_node()
     rclpy.try_shutdown()
     return 2
+
+
+def apply_rt_priority(priority: int, log) -> bool:
+    """Real-time FIFO scheduling for every thread of this process (the rclpy thread and the DDS
+    threads that deliver its messages; threads started later inherit it). Why: on a 2-core board
+    a busy non-critical node must not delay the flight-critical chain (docs/dds.md). Returns False,
+    with a warning, when not permitted; 0 does nothing."""
+    if priority <= 0:
+        return False
+    try:
+        for tid in os.listdir("/proc/self/task"):
+            os.sched_setscheduler(int(tid), os.SCHED_FIFO, os.sched_param(priority))
+    except (PermissionError, OSError) as exc:
+        log.warning(f"rt_priority {priority} not applied ({exc}); running with normal priority")
+        return False
+    log.info(f"SCHED_FIFO priority {priority} for {len(os.listdir('/proc/self/task'))} threads")
+    return True

@@ -31,7 +31,7 @@ from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import BatteryState, FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
 
 from c4d_interfaces.msg import ActuatorCommand
-from c4d_ros import manifest
+from c4d_ros import manifest, node_runtime
 from c4d_ros.drain import Drainer
 from c4d_ros.params import ParameterError, Spec, declare, declare_all
 from c4d_ros.stamps import s_to_stamp, stamp_to_s
@@ -65,6 +65,10 @@ def fault_specs(motors: int) -> dict[str, Spec]:
     return specs
 
 
+def read_rt_priority(node) -> int:
+    return int(declare(node, "rt_priority", node_runtime.RT_PRIORITY))
+
+
 def read_config(node) -> SimConfig:
     path = declare(node, "config", CONFIG)
     return load_sim_config(Path(path) if path else default_sim_config())
@@ -75,8 +79,8 @@ class SimNode:
     by executive tasks, control/actuators and the parameter services drained in the executive's
     input phase (no ROS executor: nothing wakes up per sample)."""
 
-    def __init__(self, node, config: SimConfig) -> None:
-        self.node = node
+    def __init__(self, node, config: SimConfig, rt_priority: int = 0) -> None:
+        self.node, self.rt_priority = node, rt_priority
         self.sim = Simulation(config, lambda: self.executive.t0_ns)
         self.plant, self.suite, self.sensors = self.sim.plant, self.sim.suite, config.sensors
         for name, value in declare_all(node, fault_specs(self.sim.motors)).items():  # start values apply too
@@ -229,6 +233,7 @@ class SimNode:
         cfg = self.sim.config
         log.info(f"sim: {cfg.airframe.name} at {cfg.origin}, physics {cfg.physics_rate_hz} Hz, "
                  f"IMU {self.sensors.imu_rate_hz:.0f} Hz, GNSS {self.sensors.gps_rate_hz:.0f} Hz")
+        node_runtime.apply_rt_priority(self.rt_priority, log)
         try:
             executive.run()
         finally:
@@ -240,12 +245,10 @@ class SimNode:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from c4d_ros import node_runtime
-
     rclpy = node_runtime.init(argv)
     node = rclpy.create_node("sim")
     try:
-        sim = SimNode(node, read_config(node))
+        sim = SimNode(node, read_config(node), read_rt_priority(node))
     except (SimConfigError, ParameterError) as exc:
         return node_runtime.fail("sim", str(exc), node)
     return sim.run()
