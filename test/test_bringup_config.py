@@ -46,7 +46,8 @@ def test_bundled_sitl_config_is_the_whole_graph():
     assert config.names == ["sim", "perception", "navigation", "core", "mission", "payload", "health", "bridge", "recorder"]
     assert [n.name for n in config.nodes if n.critical] == ["sim", "perception", "navigation", "core"]
     assert all(n.restart == "always" for n in config.nodes if not n.critical)
-    assert config.node("core").parameters == {"rt_priority": 50}
+    assert config.node("core").parameters == {"rt_priority": 60}  # the flight-critical chain is real-time (docs/dds.md)
+    assert [config.node(n).parameters["rt_priority"] for n in ("sim", "perception", "navigation")] == [55, 52, 51]
     assert config.platform == "sitl" and config.discovery_range == "LOCALHOST" and config.restart_spacing_s == 2.0
     # every node's executable resolves exactly where `ros2 run <pkg> <exe>` looks
     for name, path in resolve_all(config).items():
