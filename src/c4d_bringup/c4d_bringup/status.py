@@ -66,7 +66,8 @@ def render(expected: list[str], present: set[str], latest: dict, domain: str) ->
     lines.append(f"health    no {HEALTH_SUMMARY.name}" if not h else
                  f"health    {latest['health'].message or 'ok'}; failsafe {h.get('failsafe', '?')}"
                  + (f" ({h['reason']})" if h.get("reason") else "")
-                 + (f"; dead nodes {h['dead_nodes']}" if h.get("dead_nodes") else ""))
+                 + (f"; dead nodes {h['dead_nodes']}" if h.get("dead_nodes") else "")
+                 + (f"; stalled nodes {h['stalled_nodes']}" if h.get("stalled_nodes") else ""))
     r = key_values(latest.get("recorder"))
     if r:
         lines.append(f"recorder  {r.get('state', '?')}, {r.get('files', '?')} files, {r.get('topics', '?')} topics, "

@@ -1,9 +1,9 @@
 """Failsafe event evaluation: which monitored conditions are true right now.
 
 What: `evaluate(snapshot, policy, t)` turns a `HealthSnapshot` (the latest of everything the
-health node hears: dead nodes, GNSS health, the estimate, battery, the plan's geofence, the
-ground link, executor overruns) into the active events, each with a detail for people:
-`{Event.BATTERY_LOW: "28%"}`. The `FailsafeArbiter` (policy.py) then decides the action.
+health node hears: dead and stalled nodes, GNSS health, the estimate, battery, the plan's
+geofence, the ground link, executor overruns, core stalls) into the active events, each with a
+detail for people: `{Event.BATTERY_LOW: "28%"}`. The `FailsafeArbiter` (policy.py) then decides the action.
 
 Why a pure function over a snapshot: every failsafe condition is tested without DDS
 (test/test_events.py), and the node only copies messages into the snapshot. Decisions use the
@@ -20,6 +20,7 @@ from c4d_common.geodesy import GeoOrigin
 from c4d_common.geofence import LocalFence, Point3
 from c4d_common.plan import Geofence
 
+from .core_stall import CoreStallReport
 from .policy import Event, FailsafePolicy
 
 LINK_TIMEOUT_S = 3.0  # no heartbeat on the link topic for this long: link lost
@@ -62,6 +63,8 @@ class HealthSnapshot:
     geofence: Geofence | None = None  # of the active plan
     link: LinkWatch | None = None  # None: the link is not watched
     new_overruns: int = 0  # executor overruns since the previous statistics message
+    stalled_nodes: tuple[str, ...] = ()  # sorted; silent but still in the ROS graph
+    core_stall: CoreStallReport | None = None
 
 
 def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict[str, str]:
@@ -70,6 +73,8 @@ def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict
     s = snapshot
     if s.dead_nodes:
         active[Event.NODE_DEAD] = ", ".join(s.dead_nodes)
+    if s.stalled_nodes:
+        active[Event.NODE_STALLED] = ", ".join(s.stalled_nodes)
     if s.gnss is not None and not s.gnss.ok:
         active[Event.GPS_LOSS] = f"GNSS {s.gnss.message}"
     if s.estimate is not None and not (s.estimate.attitude_valid and s.estimate.position_xy_valid):
@@ -87,4 +92,8 @@ def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict
         active[Event.LINK_LOSS] = f"no heartbeat on {s.link.topic} for {LINK_TIMEOUT_S:g} s"
     if s.new_overruns:
         active[Event.EXECUTOR_OVERRUN] = f"{s.new_overruns} new overrun(s)"
+    if s.core_stall is not None and s.core_stall.stall:
+        active[Event.CORE_STALL] = s.core_stall.stall
+    if s.core_stall is not None and s.core_stall.repeated:
+        active[Event.CORE_STALL_REPEATED] = s.core_stall.repeated
     return active

@@ -1,13 +1,14 @@
 """`ros2 run c4d_health health` — monitors, diagnostics, failsafe requests.
 
 Monitors (10 Hz): node liveliness (each watched node's periodic topic silent longer than
-`node_timeout_s` of the monitor's own running time: liveness.py), GNSS health
+`node_timeout_s` of the monitor's own running time: dead if also gone from the ROS graph,
+stalled if still in it — the graph sampled once a second: liveness.py), GNSS health
 (perception/health), estimator validity (navigation/state), battery state of charge
 (sensors/battery), geofence (mission/plan against the position),
-ground link (a heartbeat topic, when `link_topic` is set), executor overruns
-(gnc/executor_stats); the conditions are judged by events.py. Publishes `diagnostics`
+ground link (a heartbeat topic, when `link_topic` is set), executor overruns and core stalls
+(gnc/executor_stats: core_stall.py); the conditions are judged by events.py. Publishes `diagnostics`
 (DiagnosticArray, 1 Hz, one status per monitor) and `health/summary` (DiagnosticStatus: overall
-level, active events, failsafe action and reason, dead nodes). The failsafe policy
+level, active events, failsafe action and reason, dead and stalled nodes). The failsafe policy
 (config/failsafe.yaml, parameter `policy_file`) turns events into hold / RTL / land /
 terminate, requested once per escalation through the mission's vehicle/command (RTL needs the
 mission), falling back to the core's gnc/command (commands.py).
@@ -39,13 +40,15 @@ from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.plan_msgs import plan_from_msg
 
 from .commands import FailsafeCommand, failsafe_command
+from .core_stall import CORE, CoreStallMonitor, CoreStallReport, StatsWindow
 from .events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, evaluate
-from .liveness import LivenessMonitor
+from .liveness import GraphPresence, LivenessMonitor, classify
 from .policy import Action, Event, FailsafeArbiter, FailsafePolicy, PolicyError
 
 NAME = "health"
 TICK_S = 0.1  # monitor period
 DIAGNOSTICS_PERIOD_S = 1.0
+GRAPH_SAMPLE_S = 1.0  # the ROS graph's node names are sampled this often (dead vs stalled)
 WATCHED = {  # node: topic that proves it alive (>= 5 Hz)
     "core": manifest.STATUS,
     "navigation": manifest.NAV_ODOMETRY,
@@ -106,6 +109,8 @@ class HealthNode:
         self.node, self.config = node, config
         self.arbiter = FailsafeArbiter(config.policy)
         self.liveness = LivenessMonitor(config.watched, config.policy.node_timeout_s, TICK_S, self._now())
+        self.graph = GraphPresence(GRAPH_SAMPLE_S)
+        self.core_stall = CoreStallMonitor(config.policy.core_stall, TICK_S, self._now())
         self.armed = self.in_air = False
         self.gnss: GnssReport | None = None
         self.battery_soc: float | None = None
@@ -114,6 +119,8 @@ class HealthNode:
         self.new_overruns = 0
         self.link_heard: float | None = None
         self.dead: tuple[str, ...] = ()
+        self.stalled: tuple[str, ...] = ()
+        self.core_stall_report: CoreStallReport | None = None
         self.last_diagnostics = 0.0
         self.pub_diagnostics = node.create_publisher(DiagnosticArray, manifest.DIAGNOSTICS.name, manifest.DIAGNOSTICS.qos)
         self.pub_summary = node.create_publisher(DiagnosticStatus, manifest.HEALTH_SUMMARY.name, manifest.HEALTH_SUMMARY.qos)
@@ -169,6 +176,8 @@ class HealthNode:
         total = int(msg.overruns_total)
         previous, self.overruns_total = self.overruns_total, total
         self.new_overruns = total - previous if previous is not None and total > previous else 0
+        self.core_stall.on_stats(self._now(), StatsWindow(float(msg.tick_rate_hz), float(msg.load_max_percent),
+                                                          int(msg.skipped_ticks)))
 
     def _on_link(self, msg: Any) -> None:
         self.link_heard = self._now()
@@ -177,13 +186,17 @@ class HealthNode:
         state = self.state.latest()
         link = LinkWatch(self.config.link_topic, self.link_heard) if self.config.link_topic else None
         return HealthSnapshot(self.dead, self.gnss, estimate_of(state) if state is not None else None, self.battery_soc,
-                              self.geofence, link, self.new_overruns)
+                              self.geofence, link, self.new_overruns, self.stalled, self.core_stall_report)
 
     def _tick(self) -> None:
         t = self._now()
         if not self.armed and self.arbiter.action != Action.NONE:
             self.arbiter.reset()
-        self.dead = tuple(self.liveness.dead(t))
+        if self.graph.due(t):
+            self.graph.update(t, (name for name, _ in self.node.get_node_names_and_namespaces()))
+        silence = classify(self.liveness.silent(t), self.graph.names)
+        self.dead, self.stalled = silence.dead, silence.stalled
+        self.core_stall_report = self.core_stall.check(t, self.graph.present(CORE))
         active = evaluate(self.snapshot(), self.config.policy, t)
         before = self.arbiter.action
         action = self.arbiter.update(t, active, self.in_air)
@@ -195,7 +208,8 @@ class HealthNode:
             self._publish_diagnostics(active)
 
     def _request(self, action: Action) -> None:
-        via_mission = self.mission_cmd.service_is_ready() and "mission" not in self.dead
+        # a stalled mission would not answer: ask the core directly
+        via_mission = self.mission_cmd.service_is_ready() and "mission" not in self.dead + self.stalled
         command = failsafe_command(action, via_mission)
         if command is None:
             return
@@ -224,7 +238,8 @@ class HealthNode:
         summary = DiagnosticStatus(level=level, name="c4d/health", hardware_id="vehicle", message=message)
         summary.values = [KeyValue(key="failsafe", value=action.name), KeyValue(key="reason", value=self.arbiter.reason),
                           KeyValue(key="active", value=",".join(sorted(active))),
-                          KeyValue(key="dead_nodes", value=active.get(Event.NODE_DEAD, ""))]
+                          KeyValue(key="dead_nodes", value=active.get(Event.NODE_DEAD, "")),
+                          KeyValue(key="stalled_nodes", value=active.get(Event.NODE_STALLED, ""))]
         self.pub_summary.publish(summary)
 
     def _publish_diagnostics(self, active: dict[str, str]) -> None:

@@ -22,7 +22,8 @@ class Event(StrEnum):
     """The monitored conditions (policy keys, diagnostics names `health/<event>`), in the order
     they are evaluated and reported."""
 
-    NODE_DEAD = "node_dead"
+    NODE_DEAD = "node_dead"  # silent and gone from the ROS graph
+    NODE_STALLED = "node_stalled"  # silent but still in the ROS graph
     GPS_LOSS = "gps_loss"
     ESTIMATOR_INVALID = "estimator_invalid"
     BATTERY_LOW = "battery_low"
@@ -30,6 +31,8 @@ class Event(StrEnum):
     GEOFENCE_BREACH = "geofence_breach"
     LINK_LOSS = "link_loss"
     EXECUTOR_OVERRUN = "executor_overrun"
+    CORE_STALL = "core_stall"  # the GNC core's executive stalled (a long tick, many skipped ticks, or silent stats)
+    CORE_STALL_REPEATED = "core_stall_repeated"  # core stalls again and again within a window
 
 
 EVENTS = tuple(e.value for e in Event)
@@ -47,11 +50,33 @@ class Rule:
 
 
 @dataclass(frozen=True)
+class CoreStallLimits:
+    """When a window of the core's executor statistics counts as a stall, and when stalls repeat.
+
+    Defaults from measured flights (2-core SITL machine, 500 Hz core): the worst tick of a 1 s
+    window stays below 6 ms and at most 9 ticks are skipped; the DDS publish stalls this monitor
+    is for lasted 100-330 ms.
+    """
+
+    worst_tick_ms: float = 20.0  # a window's worst tick longer than this [ms] is a stall
+    skipped_ticks: int = 25  # more skipped ticks than this in one window is a stall
+    stats_timeout_s: float = 1.5  # no statistics for this long [s] while the core is in the graph: stalled
+    repeat_count: int = 3  # this many stalls ...
+    repeat_window_s: float = 10.0  # ... within this long [s]: core_stall_repeated
+
+
+CORE_STALL_KEYS = {"core_stall_ms": "worst_tick_ms", "core_stall_skipped_ticks": "skipped_ticks",
+                   "core_stats_timeout_s": "stats_timeout_s", "core_stall_repeat_count": "repeat_count",
+                   "core_stall_repeat_window_s": "repeat_window_s"}
+
+
+@dataclass(frozen=True)
 class FailsafePolicy:
     rules: dict[str, Rule]
     battery_low: float = 0.30
     battery_critical: float = 0.15
     node_timeout_s: float = 1.0
+    core_stall: CoreStallLimits = CoreStallLimits()
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> FailsafePolicy:
@@ -67,7 +92,7 @@ class FailsafePolicy:
     def from_dict(cls, doc: object) -> FailsafePolicy:
         if not isinstance(doc, dict) or not isinstance(doc.get("events"), dict):
             raise PolicyError("failsafe policy: needs an 'events' mapping")
-        unknown = set(doc) - {"events", "battery_low_threshold", "battery_critical_threshold", "node_timeout_s"}
+        unknown = set(doc) - {"events", "battery_low_threshold", "battery_critical_threshold", "node_timeout_s", *CORE_STALL_KEYS}
         if unknown:
             raise PolicyError(f"failsafe policy: unknown field(s) {', '.join(sorted(unknown))}")
         rules = {}
@@ -87,7 +112,21 @@ class FailsafePolicy:
         timeout = doc.get("node_timeout_s", 1.0)
         if not isinstance(timeout, (int, float)) or timeout <= 0:
             raise PolicyError("failsafe policy: node_timeout_s must be > 0")
-        return cls(rules, float(low), float(critical), float(timeout))
+        return cls(rules, float(low), float(critical), float(timeout), core_stall_limits(doc))
+
+
+def core_stall_limits(doc: dict) -> CoreStallLimits:
+    """The core_stall_* fields of a policy document (defaults for the missing ones); PolicyError names a bad one."""
+    values: dict[str, float | int] = {}
+    for key, attr in CORE_STALL_KEYS.items():
+        if key not in doc:
+            continue
+        value = doc[key]
+        integer = isinstance(getattr(CoreStallLimits, attr), int)
+        if isinstance(value, bool) or not isinstance(value, int if integer else (int, float)) or value <= 0:
+            raise PolicyError(f"failsafe policy: {key} must be {'an integer' if integer else 'a number'} > 0")
+        values[attr] = value if integer else float(value)
+    return CoreStallLimits(**values)
 
 
 @dataclass

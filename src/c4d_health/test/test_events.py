@@ -8,6 +8,7 @@ import pytest
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.geofence import BreachKind, LocalFence
 from c4d_common.plan import Geofence
+from c4d_health.core_stall import CoreStallReport
 from c4d_health.events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, evaluate
 from c4d_health.policy import EVENTS, Event, FailsafePolicy
 
@@ -44,6 +45,18 @@ def test_event_names_are_the_policy_events():
 
 def test_dead_nodes():
     assert events(dead_nodes=("mission", "sim")) == {"node_dead": "mission, sim"}
+
+
+def test_stalled_nodes_are_their_own_event():
+    assert events(stalled_nodes=("core",)) == {"node_stalled": "core"}
+    assert events(dead_nodes=("mission",), stalled_nodes=("sim",)) == {"node_dead": "mission", "node_stalled": "sim"}
+
+
+def test_core_stall_and_repeated_core_stalls():
+    assert events(core_stall=CoreStallReport()) == {}
+    assert events(core_stall=CoreStallReport("worst tick 25 ms, 12 skipped ticks")) == \
+        {"core_stall": "worst tick 25 ms, 12 skipped ticks"}
+    assert events(core_stall=CoreStallReport("", "3 stalls within 10 s")) == {"core_stall_repeated": "3 stalls within 10 s"}
 
 
 def test_gnss_loss_is_decided_by_the_level_not_the_message():
@@ -102,5 +115,6 @@ def test_executor_overrun():
 
 def test_events_come_in_event_order():
     everything = HealthSnapshot(("sim",), GnssReport(False, "lost"), replace(at(99.0, 0.0), attitude_valid=False), 0.1,
-                                Geofence(max_distance=15.0), LinkWatch("link", None), 1)
+                                Geofence(max_distance=15.0), LinkWatch("link", None), 1, ("core",),
+                                CoreStallReport("worst tick 30 ms, 14 skipped ticks", "3 stalls within 10 s"))
     assert list(evaluate(everything, POLICY, T)) == [e for e in Event if e != Event.BATTERY_LOW]

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from c4d_health.policy import Action, FailsafeArbiter, FailsafePolicy, PolicyError
+from c4d_health.policy import EVENTS, Action, CoreStallLimits, FailsafeArbiter, FailsafePolicy, PolicyError
 
 POLICY = FailsafePolicy.from_yaml(Path(__file__).resolve().parents[1] / "config" / "failsafe.yaml")
 
@@ -12,6 +12,32 @@ POLICY = FailsafePolicy.from_yaml(Path(__file__).resolve().parents[1] / "config"
 def test_bundled_policy():
     assert POLICY.rules["gps_loss"].action == Action.LAND and POLICY.rules["battery_low"].action == Action.RTL
     assert POLICY.battery_critical < POLICY.battery_low and POLICY.node_timeout_s == 0.6
+    assert set(POLICY.rules) == set(EVENTS)  # every event has its rule in the bundled policy
+    assert POLICY.core_stall == CoreStallLimits(20.0, 25, 1.5, 3, 10.0)
+
+
+def test_a_dead_node_waits_for_its_restart_and_a_stalled_one_only_warns():
+    """node_dead lands only after 8 s (restart back-off + start-up); a node back before then clears it."""
+    arbiter = FailsafeArbiter(POLICY)
+    assert arbiter.update(0.0, {"node_dead": "mission"}, in_air=True) == Action.NONE
+    assert arbiter.update(5.0, {"node_dead": "mission"}, in_air=True) == Action.NONE  # restarting
+    assert arbiter.update(5.1, {}, in_air=True) == Action.NONE  # back: cleared
+    assert arbiter.update(6.0, {"node_dead": "mission"}, in_air=True) == Action.NONE  # the delay starts again
+    assert arbiter.update(13.9, {"node_dead": "mission"}, in_air=True) == Action.NONE
+    assert arbiter.update(14.0, {"node_dead": "mission"}, in_air=True) == Action.LAND
+    stalled = FailsafeArbiter(POLICY)
+    assert stalled.update(0.0, {"node_stalled": "mission"}, in_air=False) == Action.WARN  # reported on the ground too
+    assert stalled.update(60.0, {"node_stalled": "mission"}, in_air=True) == Action.WARN  # never more than a warning
+
+
+def test_one_core_stall_warns_repeated_stalls_land_in_the_air():
+    arbiter = FailsafeArbiter(POLICY)
+    assert arbiter.update(0.0, {"core_stall": "worst tick 25 ms, 3 skipped ticks"}, in_air=True) == Action.WARN
+    assert arbiter.update(1.0, {}, in_air=True) == Action.WARN  # latched warning, no landing
+    ground = FailsafeArbiter(POLICY)
+    assert ground.update(0.0, {"core_stall": "x", "core_stall_repeated": "3 stalls within 10 s"}, in_air=False) == Action.WARN
+    assert ground.update(0.1, {"core_stall_repeated": "3 stalls within 10 s"}, in_air=True) == Action.LAND
+    assert ground.reason == "core_stall_repeated: 3 stalls within 10 s"
 
 
 def test_delay_severity_and_no_oscillation():
@@ -45,7 +71,18 @@ def test_ground_only_events_and_flicker():
     ({"events": {"gps_loss": {"action": "land", "delay_s": -1}}}, "delay_s must be a number >= 0"),
     ({"events": {}, "battery_low_threshold": 0.1, "battery_critical_threshold": 0.2}, "battery_critical_threshold"),
     ({"rules": {}}, "needs an 'events' mapping"),
+    ({"events": {}, "core_stall_ms": 0}, "core_stall_ms must be a number > 0"),
+    ({"events": {}, "core_stall_skipped_ticks": 2.5}, "core_stall_skipped_ticks must be an integer > 0"),
+    ({"events": {}, "core_stall_repeat_count": True}, "core_stall_repeat_count must be an integer > 0"),
+    ({"events": {}, "core_stats_timeout_s": "soon"}, "core_stats_timeout_s must be a number > 0"),
 ])
 def test_bad_policy_names_the_field(doc, message):
     with pytest.raises(PolicyError, match=message):
         FailsafePolicy.from_dict(doc)
+
+
+def test_core_stall_limits_default_and_partial():
+    assert FailsafePolicy.from_dict({"events": {}}).core_stall == CoreStallLimits()
+    limits = FailsafePolicy.from_dict({"events": {}, "core_stall_ms": 50, "core_stall_repeat_count": 5}).core_stall
+    assert (limits.worst_tick_ms, limits.repeat_count, limits.skipped_ticks) == (50.0, 5, 25)
+    assert isinstance(limits.worst_tick_ms, float)
