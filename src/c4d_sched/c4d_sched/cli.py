@@ -47,7 +47,10 @@ def _float_list(text: str, what: str) -> list[float]:
 
 
 def _load_summary(ts: TaskSet, offsets: tuple[int, ...], cycle: int | None) -> dict[str, Any]:
-    length, loads = cycle_loads(ts.periods, ts.wcets, offsets, cycle)
+    try:
+        length, loads = cycle_loads(ts.periods, ts.wcets, offsets, cycle)
+    except EvaluationTooLarge as exc:  # the assignment stands; only its per-cycle table is out of reach
+        return {"skipped": str(exc)}
     return {"cycle": length, "max_cycle_load": int(loads.max()), "cycles": len(loads),
             "overloaded_cycles": int((loads > length).sum())}
 
@@ -89,6 +92,9 @@ def _print_assignment(d: dict[str, Any]) -> None:
         print(f"Ω = {g['omega']}; sections {sections}; Σδ = {g['sum_delta']}")
         print(f"certificate (Lemma 3.2.2): {'HOLDS' if g['certificate'] else 'does not hold'} — {g['certificate_reason']}")
     load = d["load"]
+    if "skipped" in load:
+        print(f"per-cycle load: not computed — {load['skipped']}")
+        return
     print(f"per-cycle load (cycle = {load['cycle']}): max {load['max_cycle_load']} over {load['cycles']} cycles, "
           f"{load['overloaded_cycles']} cycle(s) above the cycle length")
 

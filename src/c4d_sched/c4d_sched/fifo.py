@@ -77,10 +77,12 @@ def fifo_delays(
         raise ValueError("offsets must be >= 0")
     hyper = lcm_all(int(t) for t in T)
     horizon = 2 * hyper + int(O.max())
-    counts = -(-(horizon - O) // T)  # ceil: releases O + m·T < horizon
-    total = int(counts.sum())
+    # Count in Python integers first: H can exceed int64 (ns periods of 400/300/140/60 Hz give H ≈ 1e27).
+    exact_counts = [-(-(horizon - int(o)) // int(t)) for t, o in zip(T, O, strict=True)]  # ceil: O + m·T < horizon
+    total = sum(exact_counts)
     if total > max_jobs:
-        raise EvaluationTooLarge(f"{total} jobs in [0, 2H + max O) exceed the limit of {max_jobs}")
+        raise EvaluationTooLarge(f"{total} jobs in [0, 2H + max O) exceed the limit of {max_jobs} (H = {hyper})")
+    counts = np.asarray(exact_counts, dtype=np.int64)
     task = np.repeat(np.arange(n, dtype=np.int64), counts)
     first = np.repeat(np.cumsum(counts) - counts, counts)
     release = O[task] + (np.arange(total, dtype=np.int64) - first) * T[task]

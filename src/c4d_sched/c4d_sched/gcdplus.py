@@ -246,11 +246,20 @@ def gcd_plus(taskset: TaskSet, orders: Sequence[str] | None = None) -> Assignmen
             winner = _with_candidates(result, tried)
             return Assignment("gcdplus", winner.offsets, winner, f"order {name} (certificate holds)")
         results.append(result)
+    from .fifo import EvaluationTooLarge  # local: fifo imports numpy, keep GCD+ import-light
+
     scored = []
-    for position, result in enumerate(results):
-        key, text = _score(taskset, result)
-        tried.append((result.order, False, text))
-        scored.append((key, position, result))
+    try:
+        for position, result in enumerate(results):
+            key, text = _score(taskset, result)
+            tried.append((result.order, False, text))
+            scored.append((key, position, result))
+    except EvaluationTooLarge as too_large:
+        # GCD+ itself never needs H; only the tie-break does. Keep the first order, say why.
+        tried = [(r.order, False, "not evaluated") for r in results]
+        winner = _with_candidates(results[0], tried)
+        return Assignment("gcdplus", winner.offsets, winner,
+                          f"order {results[0].order} (first order; exact evaluation skipped: {too_large})")
     _, _, best = min(scored, key=lambda item: (item[0], item[1]))
     winner = _with_candidates(best, tried)
     return Assignment("gcdplus", winner.offsets, winner, f"order {best.order} (best by exact evaluation)")

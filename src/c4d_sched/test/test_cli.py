@@ -50,6 +50,32 @@ def test_wcet_above_omega_is_reported(tmp_path):
     assert "no zero-interference guarantee: max C = 12 > Ω = 5" in r.stdout
 
 
+# 400/300/140/60 Hz in ns: the hyperperiod (~1e27) does not fit in int64 (issue 14 item 5).
+HUGE_H = ("unit: ns\ntasks:\n  - {name: imu, period: 2500000, wcet: 100000}\n  - {name: att, period: 3333333, wcet: 200000}\n"
+          "  - {name: pos, period: 7142857, wcet: 300000}\n  - {name: tel, period: 16666667, wcet: 400000}\n")
+
+
+def test_huge_hyperperiod_still_assigns(tmp_path):
+    f = tmp_path / "ns.yaml"
+    f.write_text(HUGE_H)
+    r = run("assign", f, "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert len({t["offset"] for t in d["tasks"]}) == 4 and "exact evaluation skipped" in d["note"]
+    assert "exceed the limit" in d["load"]["skipped"]
+    r = run("assign", f)
+    assert r.returncode == 0 and "per-cycle load: not computed" in r.stdout, r.stderr
+
+
+def test_huge_hyperperiod_evaluation_refused_in_one_line(tmp_path):
+    f = tmp_path / "ns.yaml"
+    f.write_text(HUGE_H)
+    for args in (("assign", f, "--evaluate"), ("evaluate", f, "--offsets", "0,0,0,0")):
+        r = run(*args)
+        assert r.returncode == 2 and r.stderr.startswith("c4d-sched: error: ") and r.stderr.count("\n") == 1, r.stderr
+        assert "exceed the limit of 50000000" in r.stderr
+
+
 BAD = {
     "zero_period.yaml": ("tasks:\n  - {name: a, period: 0, wcet: 1}\n", "period must be a positive integer"),
     "negative.yaml": ("tasks:\n  - {name: a, period: 10, wcet: -1}\n", "wcet must be a positive integer"),
