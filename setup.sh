@@ -103,6 +103,11 @@ else
     echo "$REQ_HASH" > "$STAMP"
 fi
 
+# One line instead of a traceback when an installed executable runs without env.sh (tools/c4d_env_hint.py).
+SITE=$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+cp "$ROOT/tools/c4d_env_hint.py" "$SITE/c4d_env_hint.py" && echo "import c4d_env_hint" > "$SITE/c4d_env_hint.pth" \
+    || die "could not install the environment hint into $SITE"
+
 # --- 3. CMake path fix for the wheels ---------------------------------------------------
 if [ "$MODE" = wheels ]; then
     fixed=$("$VENV/bin/python" "$ROOT/tools/fix_wheel_cmake_paths.py" "$VENV" 2>"$LOGDIR/cmake-fix.log") \

@@ -236,7 +236,7 @@ def test_scripted_gcs_session(graph):
     # a plan beyond GF_MAX_HOR_DIST (60 m) is refused with the reason; the active plan stays
     assert upload(gcs, [takeoff, wp(200.0, 0.0, 6.0), (20, 2, [0.0] * 7)]) == M.MAV_MISSION_INVALID
     text = gcs.recv("STATUSTEXT", 5.0, lambda m: "geofence" in m.text)
-    assert text is not None and text.text.startswith("item 1")
+    assert text is not None and text.text.startswith("item 2")  # 1-based, as QGroundControl lists them
     assert len(download(gcs)) == 100
     # the plan flown: take-off is commanded, then three waypoints, hover at the end
     short = [takeoff, wp(6.0, 0.0, 5.0), wp(6.0, 6.0, 5.0), wp(0.0, 6.0, 5.0)]

@@ -193,7 +193,7 @@ BAD_SYSTEM = {
     (("status", "--config", "unknown_node.yaml"), "unknown node 'navigaton'"),
     (("fly", "--mission", "nowhere.yaml"), "mission nowhere.yaml: cannot read"),
     (("fly", "--mission", "bad_plan.yaml"), "mission bad_plan.yaml: "),
-    (("fly", "--mission", "outside.yaml"), "item 4: leg leaves the geofence polygon"),
+    (("fly", "--mission", "outside.yaml"), "item 5: outside the geofence polygon"),
     (("fly", "--mission", str(ROOT / "missions" / "hop.yaml"), "--timeout", "-3"), "--timeout must be a positive number"),
 ])
 def test_cli_bad_input_is_one_line_before_anything_starts(tmp_path, args, expected):

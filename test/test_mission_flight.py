@@ -76,7 +76,7 @@ def test_survey_mission(graph):
                                                                                           "east: 300, north: 20"))
     # bad plan, nothing loaded: rejected with the reason; start without a plan: refused
     reply = call(clients["upload"], UploadMission.Request(plan=plan_to_msg(outside)))
-    assert not reply.accepted and any(e.startswith("item 4: leg leaves the geofence") for e in reply.errors)
+    assert not reply.accepted and any(e.startswith("item 5: outside the geofence polygon") for e in reply.errors)
     assert not call(clients["download"], DownloadMission.Request()).has_plan
     reply = call(clients["control"], MissionControl.Request(action=MissionControl.Request.ACTION_START))
     assert reply.result == MissionControl.Response.RESULT_DENIED and "no plan" in reply.message

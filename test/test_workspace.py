@@ -107,6 +107,16 @@ def test_executable_is_where_ros2_run_looks(package, exe):
     assert path.is_file() and os.access(path, os.X_OK), path
 
 
+def test_installed_executable_without_environment_prints_the_hint():
+    # started from a plain shell (no env.sh): one line naming env.sh, exit 2 — not a 20-line traceback
+    exe = Path(get_package_prefix("c4d_gnc")) / "lib" / "c4d_gnc" / "core"
+    bare = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/tmp")}
+    done = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60, env=bare, cwd="/")
+    assert done.returncode == 2, (done.stdout, done.stderr)
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("core: error: the c4d environment is not set") and "env.sh" in lines[0], lines
+
+
 def test_every_interface_file_is_registered():
     content, _ = get_resource("rosidl_interfaces", "c4d_interfaces")
     registered = {line.split(";")[0] for line in content.splitlines() if line.endswith((".msg", ".srv"))}

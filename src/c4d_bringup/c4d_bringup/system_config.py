@@ -38,6 +38,7 @@ from typing import Any
 
 import yaml
 
+from c4d_common.config_file import yaml_error_text
 from c4d_common.share import share_file
 from c4d_ros.dds_profile import with_profile
 
@@ -115,9 +116,7 @@ def load_system_config(path: str | Path) -> SystemConfig:
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"system config {path}: malformed YAML{where}") from None
+        raise ConfigError(f"system config {path}: {yaml_error_text(exc)}") from None
     return parse_system_config(doc, path)
 
 

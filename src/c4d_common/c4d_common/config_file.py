@@ -17,6 +17,26 @@ class ConfigError(ValueError):
     """A configuration file or field is unusable; the text is one line for the user."""
 
 
+# PyYAML contexts whose mark is where the broken construct starts (an unclosed bracket or quote, a key
+# without ':'); the parser notices the problem only on a later line. Other contexts mark an enclosing
+# block (often line 1): there the problem's own line is the right one.
+_OPENING_CONTEXTS = ("while parsing a flow", "while scanning a")
+
+
+def yaml_error_text(exc: Exception) -> str:
+    """One line for a PyYAML error naming the line a person must fix:
+    "malformed YAML at line 3 (while parsing a flow mapping: expected ',' or '}', but got '{' at line 4)"."""
+    problem = getattr(exc, "problem", None) or "syntax error"
+    problem_mark = getattr(exc, "problem_mark", None)
+    context = getattr(exc, "context", None)
+    context_mark = getattr(exc, "context_mark", None)
+    if context and context_mark is not None and context.startswith(_OPENING_CONTEXTS):
+        later = f" at line {problem_mark.line + 1}" if problem_mark is not None else ""
+        return f"malformed YAML at line {context_mark.line + 1} ({context}: {problem}{later})"
+    where = f" at line {problem_mark.line + 1}" if problem_mark is not None else ""
+    return f"malformed YAML{where} ({problem})"
+
+
 def read_yaml_mapping(path: str | Path, what: str, error: type[ConfigError] = ConfigError) -> dict[str, Any]:
     """Parse `path` as a YAML mapping. `what` names the file in errors ("sim config")."""
     import yaml
@@ -27,9 +47,7 @@ def read_yaml_mapping(path: str | Path, what: str, error: type[ConfigError] = Co
     except OSError as exc:
         raise error(f"cannot read {what} {path}: {exc.strerror}") from None
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise error(f"{what} {path}: malformed YAML{where}") from None
+        raise error(f"{what} {path}: {yaml_error_text(exc)}") from None
     if not isinstance(doc, dict):
         raise error(f"{what} {path}: must be a mapping")
     return doc

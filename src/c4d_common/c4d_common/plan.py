@@ -30,6 +30,8 @@ from dataclasses import dataclass, field, replace
 
 import yaml
 
+from .config_file import yaml_error_text
+
 NAN = float("nan")
 
 ITEM_TYPES = ("takeoff", "waypoint", "loiter", "change_speed", "land", "rtl", "camera_start", "camera_stop",
@@ -92,7 +94,7 @@ def _num(item: dict[str, object], key: str, where: str, default: float | None = 
 
 
 def _item_from_yaml(doc: object, k: int) -> Item:
-    where = f"item {k}"
+    where = f"item {k + 1}"
     if not isinstance(doc, dict):
         raise PlanError(f"{where}: must be a mapping")
     kind = doc.get("type")
@@ -138,8 +140,7 @@ def plan_from_yaml_text(text: str) -> Plan:
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise PlanError(f"malformed YAML{f' at line {mark.line + 1}' if mark else ''}") from None
+        raise PlanError(yaml_error_text(exc)) from None
     if not isinstance(doc, dict) or not isinstance(doc.get("items"), list):
         raise PlanError("a plan needs an 'items' list")
     unknown = set(doc) - {"name", "cruise_speed", "rtl_altitude", "geofence", "items"}

@@ -24,7 +24,7 @@ def plan_from_qgc_text(text: str) -> Plan:
     mission = doc["mission"]
     items = []
     for k, raw in enumerate(mission.get("items") or []):
-        where = f"item {k}"
+        where = f"item {k + 1}"
         if not isinstance(raw, dict) or raw.get("type") != "SimpleItem":
             raise PlanError(f"{where}: only SimpleItem is supported (got {raw.get('type') if isinstance(raw, dict) else raw!r})")
         params = raw.get("params")

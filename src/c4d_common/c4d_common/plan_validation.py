@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 from .geodesy import GeoOrigin
-from .geofence import LocalFence, leg_inside
+from .geofence import LocalFence, leg_inside, point_inside
 from .plan import GLOBAL, Geofence, Item, Plan
 
 __all__ = ["IssueKind", "PlanIssue", "ValidationResult", "VehicleLimits", "ceiling_of", "check_goto", "flight_time_left",
@@ -106,6 +106,12 @@ def flight_time_left(charge_ah: float, hover_current_a: float, reserve: float = 
     return charge_ah * (1.0 - reserve) / hover_current_a * 3600.0
 
 
+def label(index: int) -> str:
+    """How an item is named to people: 1-based, as in the plan file and QGroundControl's list
+    (`PlanIssue.item` keeps the 0-based index for programs)."""
+    return f"item {index + 1}"
+
+
 def local_point(item: Item, home: GeoOrigin) -> tuple[float, float, float]:
     if item.frame == GLOBAL:
         e, n, _ = home.to_enu(item.x, item.y, home.altitude)
@@ -134,9 +140,15 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
     airborne = False
 
     def fly_to(k: int, target: tuple[float, float, float]) -> None:
+        """One straight leg; a polygon error names one fact about item k: its point lies outside, or
+        (both ends inside) its leg cuts a corner. The way back from an outside point is not a new error."""
         nonlocal position, length, duration
-        if not fence.leg_inside(position[:2], target[:2]):
-            error(IssueKind.LEAVES_POLYGON, k, f"item {k}: leg leaves the geofence polygon")
+        if not fence.leg_inside(position[:2], target[:2]) and not any(
+                e.kind is IssueKind.LEAVES_POLYGON and e.item == k for e in errors):
+            if not point_inside(target[:2], list(fence.polygon)):
+                error(IssueKind.LEAVES_POLYGON, k, f"{label(k)}: outside the geofence polygon")
+            elif point_inside(position[:2], list(fence.polygon)):
+                error(IssueKind.LEAVES_POLYGON, k, f"{label(k)}: leg leaves the geofence polygon")
         horizontal = math.hypot(target[0] - position[0], target[1] - position[1])
         vertical = target[2] - position[2]
         length += horizontal + abs(vertical)
@@ -146,36 +158,36 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
     for k, item in enumerate(plan.items):
         if item.type == "takeoff":
             if not (0 < item.z <= ceiling):
-                error(IssueKind.TAKEOFF_ALTITUDE, k, f"item {k}: take-off altitude {item.z:g} m outside (0, {ceiling:g}] m")
+                error(IssueKind.TAKEOFF_ALTITUDE, k, f"{label(k)}: take-off altitude {item.z:g} m outside (0, {ceiling:g}] m")
             fly_to(k, (position[0], position[1], item.z))
             airborne = True
         elif item.type in ("waypoint", "loiter"):
             if not airborne:
-                error(IssueKind.BEFORE_TAKEOFF, k, f"item {k}: {item.type} before any take-off")
+                error(IssueKind.BEFORE_TAKEOFF, k, f"{label(k)}: {item.type} before any take-off")
             if not all(math.isfinite(v) for v in (item.x, item.y, item.z)):
-                error(IssueKind.NO_POSITION, k, f"item {k}: {item.type} needs a position and an altitude")
+                error(IssueKind.NO_POSITION, k, f"{label(k)}: {item.type} needs a position and an altitude")
                 continue
             if item.frame == GLOBAL and not (-90 <= item.x <= 90 and -180 <= item.y <= 180):
-                error(IssueKind.COORDINATES_OUT_OF_RANGE, k, f"item {k}: latitude/longitude out of range")
+                error(IssueKind.COORDINATES_OUT_OF_RANGE, k, f"{label(k)}: latitude/longitude out of range")
                 continue
             target = local_point(item, home)
             if target[2] > ceiling:
-                error(IssueKind.ABOVE_CEILING, k, f"item {k}: altitude {target[2]:g} m above the maximum {ceiling:g} m")
+                error(IssueKind.ABOVE_CEILING, k, f"{label(k)}: altitude {target[2]:g} m above the maximum {ceiling:g} m")
             elif target[2] < MIN_ALTITUDE:
-                error(IssueKind.BELOW_MINIMUM, k, f"item {k}: altitude {target[2]:g} m below the minimum {MIN_ALTITUDE:g} m")
+                error(IssueKind.BELOW_MINIMUM, k, f"{label(k)}: altitude {target[2]:g} m below the minimum {MIN_ALTITUDE:g} m")
             distance = math.hypot(target[0], target[1])
             if fence.max_distance > 0 and distance > fence.max_distance:
                 error(IssueKind.TOO_FAR, k,
-                      f"item {k}: {distance:.0f} m from home exceeds the geofence's {fence.max_distance:g} m")
+                      f"{label(k)}: {distance:.0f} m from home exceeds the geofence's {fence.max_distance:g} m")
             fly_to(k, target)
             duration += item.hold
         elif item.type == "change_speed":
             if item.speed > limits.max_speed:
-                error(IssueKind.SPEED, k, f"item {k}: speed {item.speed:g} m/s above the vehicle's {limits.max_speed:g} m/s")
+                error(IssueKind.SPEED, k, f"{label(k)}: speed {item.speed:g} m/s above the vehicle's {limits.max_speed:g} m/s")
             speed = min(item.speed, limits.max_speed)
         elif item.type == "rtl":
             if rtl_altitude > ceiling:
-                error(IssueKind.RTL_ALTITUDE, k, f"item {k}: RTL altitude {rtl_altitude:g} m above the maximum {ceiling:g} m")
+                error(IssueKind.RTL_ALTITUDE, k, f"{label(k)}: RTL altitude {rtl_altitude:g} m above the maximum {ceiling:g} m")
             fly_to(k, (position[0], position[1], max(position[2], rtl_altitude)))
             fly_to(k, (0.0, 0.0, position[2]))
             fly_to(k, (0.0, 0.0, 0.0))

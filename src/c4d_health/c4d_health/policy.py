@@ -15,6 +15,7 @@ from pathlib import Path
 
 import yaml
 
+from c4d_common.config_file import yaml_error_text
 from c4d_common.vehicle import FailsafeAction as Action  # VehicleStatus.FAILSAFE_*; order = severity
 
 
@@ -84,8 +85,8 @@ class FailsafePolicy:
             doc = yaml.safe_load(Path(path).read_text())
         except OSError as exc:
             raise PolicyError(f"cannot read failsafe policy {path}: {exc.strerror}") from None
-        except yaml.YAMLError:
-            raise PolicyError(f"failsafe policy {path}: malformed YAML") from None
+        except yaml.YAMLError as exc:
+            raise PolicyError(f"failsafe policy {path}: {yaml_error_text(exc)}") from None
         return cls.from_dict(doc)
 
     @classmethod

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from c4d_common.geodesy import GeoOrigin
-from c4d_common.plan import PlanError, plan_from_yaml_text
+from c4d_common.plan import Geofence, Item, Plan, PlanError, plan_from_yaml_text
 from c4d_common.plan_files import load_plan, plan_from_qgc_text
 from c4d_common.plan_validation import VehicleLimits, validate
 
@@ -28,10 +28,27 @@ def test_outside_geofence_too_high_and_too_far_are_rejected_item_by_item():
     bad = text.replace("{type: waypoint, east: 20, north: 20, alt: 8", "{type: waypoint, east: 200, north: 20, alt: 8")
     bad = bad.replace("{type: waypoint, east: 0, north: 30, alt: 8", "{type: waypoint, east: 0, north: 30, alt: 50")
     result = validate(plan_from_yaml_text(bad), HOME)
-    assert any(e.startswith("item 4: leg leaves the geofence") for e in result.errors)
-    assert any(e.startswith("item 4:") and "exceeds the geofence's 120 m" in e for e in result.errors)
-    assert any(e.startswith("item 6: altitude 50 m above the maximum 30 m") for e in result.errors)
+    assert any(e.startswith("item 5: outside the geofence polygon") for e in result.errors)
+    assert any(e.startswith("item 5:") and "exceeds the geofence's 120 m" in e for e in result.errors)
+    assert any(e.startswith("item 7: altitude 50 m above the maximum 30 m") for e in result.errors)
     assert validate(plan, HOME).ok  # the original is untouched
+
+
+def test_a_point_outside_the_fence_is_one_error_per_fact_numbered_from_1():
+    # waypoint 5 (1-based, as in the file) at 300 m east: outside the polygon and too far; the leg back
+    # from it (item 6) is a consequence, not a second error
+    text = (ROOT / "missions" / "survey.yaml").read_text().replace("east: 20, north: 20", "east: 300, north: 20")
+    errors = validate(plan_from_yaml_text(text), HOME).errors
+    assert errors == ("item 5: 301 m from home exceeds the geofence's 120 m", "item 5: outside the geofence polygon")
+    # two points outside in a row: each named once; a leg between two inside points that cuts the
+    # polygon's corner is named by the item it leads to
+    two = text.replace("east: 0, north: 20", "east: 100, north: 20")
+    assert [e for e in validate(plan_from_yaml_text(two), HOME).errors if "polygon" in e] == [
+        "item 5: outside the geofence polygon", "item 6: outside the geofence polygon"]
+    square = [(0.0, 0.0), (50.0, 0.0), (50.0, 50.0), (25.0, 25.0), (0.0, 50.0)]  # a notch from the north
+    corner = Plan((Item("takeoff", z=5.0), Item("waypoint", x=0.0, y=30.0, z=5.0), Item("waypoint", x=30.0, y=30.0, z=5.0)),
+                  Geofence(tuple(HOME.to_geodetic(e - 10.0, n - 5.0, 0.0)[:2] for e, n in square)))
+    assert list(validate(corner, HOME).errors) == ["item 3: leg leaves the geofence polygon"]
 
 
 def test_endurance_and_limits():
@@ -73,7 +90,7 @@ def test_qgroundcontrol_plan_import():
     assert plan.items[1].hold == 2 and plan.items[1].acceptance_radius == 1.5 and plan.cruise_speed == 4
     assert len(plan.geofence.polygon) == 4 and validate(plan, HOME).ok
     doc["mission"]["items"].append({"type": "ComplexItem", "complexItemType": "survey"})
-    with pytest.raises(PlanError, match="item 4: only SimpleItem"):
+    with pytest.raises(PlanError, match="item 5: only SimpleItem"):
         plan_from_qgc_text(json.dumps(doc))
     with pytest.raises(PlanError, match="not a QGroundControl"):
         plan_from_qgc_text("{}")

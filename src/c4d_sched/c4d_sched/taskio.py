@@ -116,7 +116,10 @@ def load_taskset(path: str | Path) -> TaskSet:
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
+        # an unclosed bracket/quote or a key without ':' is noticed a line later: name where it starts
+        opened = getattr(exc, "context_mark", None) if str(getattr(exc, "context", "")).startswith(
+            ("while parsing a flow", "while scanning a")) else None
+        mark = opened or getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark else ""
-        raise TaskSetError(f"{path}: malformed YAML{where}") from None
+        raise TaskSetError(f"{path}: malformed YAML{where} ({getattr(exc, 'problem', None) or 'syntax error'})") from None
     return taskset_from_dict(doc)

@@ -12,6 +12,7 @@ from pathlib import Path
 import yaml
 
 from c4d_common.airframe import Airframe, AirframeError, default_airframe_path, load_airframe
+from c4d_common.config_file import yaml_error_text
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.share import share_file
 
@@ -54,8 +55,8 @@ def load_sim_config(path: Path) -> SimConfig:
         doc = yaml.safe_load(path.read_text())
     except OSError as exc:
         raise SimConfigError(f"cannot read sim config {path}: {exc.strerror}") from None
-    except yaml.YAMLError:
-        raise SimConfigError(f"sim config {path}: malformed YAML") from None
+    except yaml.YAMLError as exc:
+        raise SimConfigError(f"sim config {path}: {yaml_error_text(exc)}") from None
     if not isinstance(doc, dict):
         raise SimConfigError("sim config: must be a mapping")
     unknown = set(doc) - {"airframe", "start", "physics_rate_hz", "ground_truth_rate_hz", "seed", "wind", "sensors"}
