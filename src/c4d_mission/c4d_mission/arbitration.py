@@ -11,8 +11,11 @@ go-to commanded outside the plan. The rules:
 - go-to pauses the mission (resume continues it from where the vehicle is) and loiters at the
   target (needs a flying vehicle; checked against the plan's geofence unless forced — a target
   that is itself malformed is never forced).
-- HOLD pauses the mission, LAND and DISARM abort it; each cancels a detour; then the core decides.
-- A mode set by hand that the core accepts pauses the mission and cancels a detour.
+- HOLD, LAND, DISARM and a mode set by hand are the core's to decide: they act on the plan only
+  once the core accepts them (HOLD and a mode pause the mission, LAND and DISARM abort it; each
+  cancels a detour). A refused one changes nothing (issue 14: a DISARM refused in the air used to
+  abort the mission). While the core decides, the executors are not stepped (at most AWAIT_S), so
+  no new-leg GOTO can reach the core after the command and undo an accepted HOLD / LAND / mode.
 - mission/control start and resume cancel a detour (the plan takes over again); pause asks the
   core to HOLD.
 - `step()` runs the mission before the detour every tick, so the requests both send reach the core
@@ -33,6 +36,9 @@ from c4d_common.vehicle import Command, CommandResult, Landed, MissionAction, Mi
 from .executor import Checkpoint, MissionExecutor, Output, Vehicle
 
 Vec = tuple[float, float, float]
+# forwarded commands that take the vehicle from the plan when the core accepts them
+TAKES_VEHICLE = (VehicleCommandId.HOLD, VehicleCommandId.LAND, VehicleCommandId.DISARM, VehicleCommandId.SET_MODE)
+AWAIT_S = 0.5  # [s] longest the executors wait for the core's answer (a lost reply must not freeze the plan)
 
 
 @dataclass(frozen=True)
@@ -81,6 +87,8 @@ class CommandArbiter:
         self.mission = MissionExecutor()
         self.detour = MissionExecutor()  # RTL and go-to commanded outside a plan
         self._next_id = 1
+        self._awaiting = 0  # TAKES_VEHICLE commands forwarded, the core's answer not yet in
+        self._awaiting_since: float | None = None
 
     # ------------------------------------------------------------------ plans
     def accept(self, plan: Plan, home: GeoOrigin | None, endurance_s: float | None) -> Acceptance:
@@ -129,11 +137,8 @@ class CommandArbiter:
             reason = "mission is active (pause it first)" if self.mission.status == MissionStatus.ACTIVE else ""
             if not reason:
                 self.mission.clear()
-        else:  # SET_CURRENT
-            plan = self.mission.plan
-            reason = "" if plan is not None and 0 <= item < len(plan.items) else f"item {item} does not exist"
-            if not reason:
-                self.mission.current = item
+        else:  # SET_CURRENT: an active mission flies to the new item at once
+            reason = self.mission.set_current(item)
         if reason:
             return Decision(CommandResult.DENIED, reason)
         return Decision(CommandResult.ACCEPTED, "accepted", core=core)
@@ -141,26 +146,31 @@ class CommandArbiter:
     # ------------------------------------------------------------------ vehicle/command
     def command(self, command: int, vehicle: VehicleView, force: bool = False, target: Item | None = None) -> Decision:
         """vehicle/command after the pre-arm checks: RTL and go-to are flown here, everything else
-        is forwarded to the core (HOLD, LAND, DISARM first take the vehicle from the plan)."""
+        is forwarded to the core; the caller must report the core's answer (or that there was
+        none) to `core_replied`."""
         if command == VehicleCommandId.RETURN_TO_LAUNCH:
             return self._return_to_launch(vehicle)
         if command == VehicleCommandId.GOTO:
             return self._go_to(vehicle, force, target)
-        if command == VehicleCommandId.HOLD:
-            self.mission.pause()
-            self.detour.clear()
-        elif command in (VehicleCommandId.LAND, VehicleCommandId.DISARM):
-            self.mission.abort()
-            self.detour.clear()
+        if command in TAKES_VEHICLE:
+            self._awaiting += 1
         return Decision(CommandResult.ACCEPTED, "", forward=True)
 
     def core_replied(self, command: int, result: int) -> None:
-        """The core's answer to a forwarded command: a mode set by hand (pilot, GCS) takes the
-        vehicle from the plan — the mission pauses (set mission mode again to resume where it
-        stopped) and an RTL or go-to is cancelled."""
-        if command == VehicleCommandId.SET_MODE and result == CommandResult.ACCEPTED:
+        """The core's answer to a forwarded command (CommandResult; anything but ACCEPTED when it
+        did not answer). Accepted HOLD, LAND, DISARM or mode set by hand (pilot, GCS) take the
+        vehicle from the plan: HOLD and a mode pause the mission (set mission mode again to resume
+        where it stopped), LAND and DISARM abort it; an RTL or go-to is cancelled. Refused: nothing."""
+        if command not in TAKES_VEHICLE:
+            return
+        self._awaiting = max(0, self._awaiting - 1)
+        if result != CommandResult.ACCEPTED:
+            return
+        if command in (VehicleCommandId.LAND, VehicleCommandId.DISARM):
+            self.mission.abort()
+        else:
             self.mission.pause()
-            self.detour.clear()
+        self.detour.clear()
 
     def _return_to_launch(self, vehicle: VehicleView) -> Decision:
         if vehicle.home is None or not vehicle.armed:
@@ -185,7 +195,14 @@ class CommandArbiter:
 
     # ------------------------------------------------------------------ guidance
     def step(self, now: float, dt: float, vehicle: Vehicle) -> list[tuple[MissionExecutor, Output]]:
-        """One guidance step of the mission, then of the detour (this order is the contract)."""
+        """One guidance step of the mission, then of the detour (this order is the contract);
+        nothing while the core decides a forwarded command (module docstring)."""
+        if self._awaiting:
+            self._awaiting_since = now if self._awaiting_since is None else self._awaiting_since
+            if now - self._awaiting_since < AWAIT_S:
+                return [(self.mission, Output()), (self.detour, Output())]
+            self._awaiting = 0  # no answer: the plan goes on
+        self._awaiting_since = None
         return [(runner, runner.step(now, dt, vehicle)) for runner in (self.mission, self.detour)]
 
 

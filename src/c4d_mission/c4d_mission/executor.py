@@ -6,7 +6,9 @@ its next tick) and the guidance setpoint to stream. Waypoint legs are flown by a
 moves along the segment with a trapezoidal speed profile (cruise speed, acceleration limit), so
 the setpoints are smooth; a waypoint is reached when the vehicle is within its acceptance
 radius of it and the carrot has arrived; then its hold time runs. RTL climbs to the RTL
-altitude, flies home and lands. Camera items update `camera` for the payload block.
+altitude, flies home and lands. Camera items update `camera` for the payload block. A waypoint
+or loiter reached on the ground (a plan without a take-off item, started on the ground) is
+preceded by a take-off to its altitude, at least `takeoff_altitude` (PX4: MIS_TAKEOFF_ALT).
 """
 
 from __future__ import annotations
@@ -94,13 +96,15 @@ class LegTracker:
 class MissionExecutor:
     """Runs one plan (or a one-item RTL / go-to plan) item by item: see the module docstring."""
 
-    def __init__(self, default_speed: float = 5.0, default_rtl_altitude: float = 15.0) -> None:
+    def __init__(self, default_speed: float = 5.0, default_rtl_altitude: float = 15.0,
+                 takeoff_altitude: float = 2.5) -> None:
         self.plan: Plan | None = None
         self.home: GeoOrigin | None = None
         self.status = MissionStatus.NO_PLAN
         self.current = 0
         self.last_reached = -1
         self.default_speed, self.default_rtl_altitude = default_speed, default_rtl_altitude
+        self.takeoff_altitude = takeoff_altitude  # [m] least altitude of a take-off the plan does not have
         self.speed = default_speed
         self.camera = CameraState()
         self._phase = "start"
@@ -143,6 +147,19 @@ class MissionExecutor:
         if not 0 <= item < len(self.plan.items):
             return f"item {item} does not exist"
         self.current, self._phase, self.status, self._tracker = item, "start", MissionStatus.ACTIVE, None
+        return ""
+
+    def set_current(self, item: int) -> str:
+        """Make `item` the current one (MISSION_SET_CURRENT). An active mission flies to it at once,
+        on a fresh leg from where the vehicle is (PX4: the vehicle goes to the new current item),
+        never finishing the interrupted leg or treating the new item as already under way."""
+        if self.plan is None:
+            return "no plan loaded"
+        if not 0 <= item < len(self.plan.items):
+            return f"item {item} does not exist"
+        self.current, self.retries = item, 0
+        if self.status == MissionStatus.ACTIVE:
+            self._phase, self._tracker = "start", None
         return ""
 
     def pause(self) -> str:
@@ -220,7 +237,10 @@ class MissionExecutor:
         if kind == "takeoff":
             return self._takeoff(item.z, v, out)
         if kind in ("waypoint", "loiter"):
-            return self._goto(now, dt, local_point(item, self.home), item.acceptance_radius, item.hold, item.yaw, v, out)
+            target = local_point(item, self.home)
+            if self._phase == "wait" or (self._phase == "start" and not v.in_air):
+                return self._take_off_first(max(target[2], self.takeoff_altitude), v, out)
+            return self._goto(now, dt, target, item.acceptance_radius, item.hold, item.yaw, v, out)
         if kind == "rtl":
             return self._rtl(now, dt, v, out)
         if kind == "land":
@@ -250,6 +270,15 @@ class MissionExecutor:
             self._phase = "wait"
         elif self._phase == "wait" and v.in_air and v.core_nav == Nav.HOLD:  # the core holds after the climb
             return self._next(out)
+        return out
+
+    def _take_off_first(self, altitude: float, v: Vehicle, out: Output) -> Output:
+        """On the ground at a waypoint: take off (the plan has no take-off item), then fly the item."""
+        if self._phase == "start":
+            out.requests.append((Command.TAKEOFF, altitude))
+            self._phase = "wait"
+        elif v.in_air and v.core_nav == Nav.HOLD:  # the core holds after the climb: now the leg
+            self._phase = "start"
         return out
 
     def _fly(self, now: float, dt: float, target: Vec, radius: float, v: Vehicle, out: Output, yaw: float = math.nan) -> bool:

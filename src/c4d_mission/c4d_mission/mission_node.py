@@ -5,8 +5,9 @@ mission/download, mission/control (start, pause, resume, clear, set current), ve
 (arm / take-off with pre-arm checks: estimator valid with home set, every sensor healthy,
 battery above the reserve, inside the geofence; RTL and go-to (loiter at a global target,
 checked against the geofence unless `force`) are flown by the mission node; disarm, land,
-hold and set mode are forwarded to the core's gnc/command; hold and an accepted set mode pause
-the mission, resumed by mission/control resume). Publishes guidance/setpoint (50 Hz while a mission or RTL
+hold and set mode are forwarded to the core's gnc/command; once the core accepts, hold and set
+mode pause the mission (resumed by mission/control resume), land and disarm abort it; a refused
+command changes nothing). Publishes guidance/setpoint (50 Hz while a mission or RTL
 flies), mission/state (on change and at 2 Hz) and mission/plan (latched). Mode changes reach
 the core only through its latched gnc/command interface.
 Parameters: plan_file (loaded and validated once home is known), min_battery (0.2),
@@ -261,6 +262,7 @@ class MissionNode:
             return response
         if not self.core.service_is_ready():
             response.result, response.message = int(CommandResult.TEMPORARILY_REJECTED), "GNC core not reachable"
+            self.arbiter.core_replied(c, response.result)  # not sent: nothing changes
             return response
         forwarded = await self.core.call_async(request)
         response.result, response.message = forwarded.result, forwarded.message

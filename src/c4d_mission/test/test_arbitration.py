@@ -95,10 +95,13 @@ def test_hold_land_disarm_and_mode_changes_take_the_vehicle_from_the_plan():
     arbiter.control(MissionAction.START)  # the plan again: the RTL is cancelled
     assert arbiter.detour.status == MissionStatus.NO_PLAN
     hold = arbiter.command(VehicleCommandId.HOLD, FLYING)
-    assert hold.forward and arbiter.mission.status == MissionStatus.PAUSED
+    assert hold.forward and arbiter.mission.status == MissionStatus.ACTIVE  # the core decides first
+    arbiter.core_replied(VehicleCommandId.HOLD, CommandResult.ACCEPTED)
+    assert arbiter.mission.status == MissionStatus.PAUSED
     arbiter.control(MissionAction.RESUME)
     arbiter.command(VehicleCommandId.GOTO, FLYING, target=target(10, 10, 8))
     assert arbiter.command(VehicleCommandId.LAND, FLYING).forward
+    arbiter.core_replied(VehicleCommandId.LAND, CommandResult.ACCEPTED)
     assert arbiter.mission.status == MissionStatus.ABORTED and arbiter.detour.status == MissionStatus.NO_PLAN
 
     arbiter = survey_arbiter()
@@ -128,3 +131,61 @@ def test_a_plan_ending_in_the_air_holds_then_an_rtl_at_once_still_asks_for_goto(
     assert arbiter.command(VehicleCommandId.RETURN_TO_LAUNCH, FLYING).result == CommandResult.ACCEPTED
     (_, mission_out), (_, detour_out) = arbiter.step(t, 0.02, stale)
     assert mission_out.requests == [] and detour_out.requests == [(Command.GOTO, 0.0)]
+
+
+def test_a_refused_disarm_in_the_air_changes_nothing_and_the_plan_waits_for_the_answer():
+    """Issue 14: DISARM in flight is DENIED by the core; the mission used to be aborted before the
+    command was forwarded (ABORTED, the vehicle flew back to where its leg started)."""
+    arbiter = survey_arbiter()
+    arbiter.control(MissionAction.START)
+    flying = Vehicle((0.0, 0.0, 8.0), True, True, int(Nav.GOTO))
+    t = 0.0
+    for _ in range(200):  # past the take-off item, on the first leg
+        arbiter.step(t, 0.02, flying)
+        t += 0.02
+    current, leg = arbiter.mission.current, arbiter.mission._tracker
+    assert current >= 1 and leg is not None
+    disarm = arbiter.command(VehicleCommandId.DISARM, FLYING)
+    assert disarm.forward and arbiter.mission.status == MissionStatus.ACTIVE
+    # while the core decides, neither executor runs: no new-leg GOTO can overtake the command
+    assert all(out.requests == [] and out.setpoint is None for _, out in arbiter.step(t, 0.02, flying))
+    arbiter.core_replied(VehicleCommandId.DISARM, CommandResult.DENIED)
+    assert arbiter.mission.status == MissionStatus.ACTIVE and arbiter.mission.current == current
+    (_, out), _ = arbiter.step(t + 0.02, 0.02, flying)
+    assert out.setpoint is not None and arbiter.mission._tracker is leg  # the same leg goes on
+    # accepted (forced on the ground or in the air): the plan ends
+    arbiter.command(VehicleCommandId.DISARM, FLYING, force=True)
+    arbiter.core_replied(VehicleCommandId.DISARM, CommandResult.ACCEPTED)
+    assert arbiter.mission.status == MissionStatus.ABORTED
+
+
+def test_a_lost_core_answer_freezes_the_plan_only_briefly():
+    arbiter = survey_arbiter()
+    arbiter.control(MissionAction.START)
+    grounded = Vehicle((0.0, 0.0, 0.0), True, False, int(Nav.HOLD))
+    arbiter.command(VehicleCommandId.HOLD, FLYING)
+    assert arbiter.step(0.0, 0.02, grounded)[0][1].requests == []
+    assert arbiter.step(0.4, 0.02, grounded)[0][1].requests == []
+    assert [c for c, _ in arbiter.step(0.6, 0.02, grounded)[0][1].requests] == [Command.TAKEOFF]  # no answer: it goes on
+    assert arbiter.mission.status == MissionStatus.ACTIVE
+
+
+def test_set_current_flies_to_the_new_item_at_once():
+    """Issue 14: MISSION_SET_CURRENT was acknowledged, but the executor went on with the old leg's
+    carrot and waited for the new item there (35 s); an RTL item landed on the spot."""
+    arbiter = CommandArbiter()
+    plan = Plan((Item("takeoff", z=5.0), Item("waypoint", x=20.0, y=0.0, z=5.0), Item("waypoint", x=0.0, y=15.0, z=5.0),
+                 Item("rtl")), rtl_altitude=8.0)
+    assert arbiter.accept(plan, HOME, None).plan is not None
+    arbiter.control(MissionAction.START, 1)
+    v = Vehicle((8.0, 0.0, 5.0), True, True, int(Nav.GOTO))
+    for k in range(50):
+        arbiter.step(k * 0.02, 0.02, v)
+    assert arbiter.control(MissionAction.SET_CURRENT, 2).result == CommandResult.ACCEPTED
+    (_, out), _ = arbiter.step(1.0, 0.02, v)
+    assert out.requests == [(Command.GOTO, 0.0)] and arbiter.mission.current == 2
+    assert math.dist(out.setpoint[0], v.position) < 0.1  # a fresh leg from where the vehicle is ...
+    assert out.setpoint[1][1] > 0 and out.setpoint[1][0] < 0  # ... towards (0, 15), not on to (20, 0)
+    assert arbiter.control(MissionAction.SET_CURRENT, 3).result == CommandResult.ACCEPTED
+    (_, out), _ = arbiter.step(1.02, 0.02, v)
+    assert (Command.LAND, 0.0) not in out.requests and out.setpoint[1][2] > 0  # the RTL climbs, it does not land here
