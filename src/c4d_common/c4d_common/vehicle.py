@@ -51,6 +51,7 @@ class Command(IntEnum):  # VehicleCommand.CMD_* subset served by the core
     DISARM = 2
     TAKEOFF = 3
     LAND = 4
+    RETURN_TO_LAUNCH = 5  # as GOTO, reported as AUTO / RTL: the mission node flies the return's setpoints
     HOLD = 6
     SET_MODE = 7
     GOTO = 8  # follow the external guidance setpoint stream (AUTO / GOTO), holding if it goes stale

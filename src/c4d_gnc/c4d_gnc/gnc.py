@@ -9,8 +9,9 @@ the middle of a control chain.
 Modes (c4d_interfaces/VehicleStatus numbering): RATE and ATTITUDE follow external setpoints of
 that level; POSITION holds the position and heading captured on entry; AUTO runs a navigation
 state — TAKEOFF (climb at the airframe's take-off speed to the target, then HOLD), HOLD, LAND
-(descend at the landing speed, detect touchdown, disarm), MISSION/GOTO (follow external
-guidance setpoints, holding if they go stale); KILL stops the motors at once.
+(descend at the landing speed, detect touchdown, disarm), MISSION/GOTO/RTL (follow external
+guidance setpoints, holding if they go stale; RTL is the mission node flying a return home, kept
+apart from GOTO so that the vehicle's status says what it does); KILL stops the motors at once.
 """
 
 from __future__ import annotations
@@ -166,9 +167,9 @@ class GncCore:
             return Verdict(False, "refusing to disarm in the air (use force)")
         if req.command == Command.SET_MODE and req.mode not in (Mode.RATE, Mode.ATTITUDE, Mode.POSITION, Mode.AUTO, Mode.KILL):
             return Verdict(False, f"unknown mode {int(req.mode)}")
-        if req.command in (Command.LAND, Command.HOLD, Command.GOTO) and not armed:
+        if req.command in (Command.LAND, Command.HOLD, Command.GOTO, Command.RETURN_TO_LAUNCH) and not armed:
             return Verdict(False, "not armed")
-        if req.command == Command.GOTO and landed == Landed.ON_GROUND:
+        if req.command in (Command.GOTO, Command.RETURN_TO_LAUNCH) and landed == Landed.ON_GROUND:
             return Verdict(False, "on the ground: take off first")
         self.pending.append(req)
         return Verdict(True, "accepted: applies at the next tick")
@@ -223,9 +224,9 @@ class GncCore:
         elif req.command == Command.HOLD:
             self._capture_hold()
             out.mode, out.nav = Mode.AUTO, Nav.HOLD
-        elif req.command == Command.GOTO:
+        elif req.command in (Command.GOTO, Command.RETURN_TO_LAUNCH):  # follow the external setpoints
             self._capture_hold()
-            out.mode, out.nav = Mode.AUTO, Nav.GOTO
+            out.mode, out.nav = Mode.AUTO, Nav.GOTO if req.command == Command.GOTO else Nav.RTL
 
     def _reset_controllers(self) -> None:
         self.translation.reset()

@@ -24,7 +24,7 @@ def feed(core, now=10.0, valid_position=True):
 
 
 def test_unserved_command_is_unsupported_and_unknown_mode_denied(core):
-    assert answer_command(core, 5, 0, 0.0, False)[0] == CommandResult.UNSUPPORTED  # RTL is the mission's
+    assert answer_command(core, 42, 0, 0.0, False)[0] == CommandResult.UNSUPPORTED
     result, message = answer_command(core, Command.SET_MODE, 42, 0.0, False)
     assert result == CommandResult.DENIED and "42" in message
 
@@ -43,6 +43,19 @@ def test_accepted_request_applies_at_the_next_latch(core):
     assert not core.out.armed
     core.latch()
     assert core.out.armed
+
+
+def test_return_to_launch_follows_the_setpoints_and_reports_rtl(core):
+    """Issue 14.11: the mission node flies an RTL through the core; the status must say RTL (was GOTO,
+    which a GCS shows as HOLD)."""
+    feed(core)
+    assert answer_command(core, Command.RETURN_TO_LAUNCH, 0, 0.0, False)[0] == CommandResult.DENIED  # not armed
+    core.out.armed, core.out.landed = True, Landed.ON_GROUND
+    assert answer_command(core, Command.RETURN_TO_LAUNCH, 0, 0.0, False)[0] == CommandResult.DENIED  # on the ground
+    core.out.landed = Landed.IN_AIR
+    assert answer_command(core, Command.RETURN_TO_LAUNCH, 0, 0.0, False)[0] == CommandResult.ACCEPTED
+    core.latch()
+    assert (core.out.mode, core.out.nav) == (Mode.AUTO, Nav.RTL)
 
 
 def test_status_on_change_and_at_the_period_with_the_arm_time():

@@ -54,7 +54,7 @@ class Vehicle:
 
 @dataclass
 class Output:
-    requests: list[tuple[Command, float]] = field(default_factory=list)  # (TAKEOFF, alt) | (GOTO | LAND | HOLD, 0)
+    requests: list[tuple[Command, float]] = field(default_factory=list)  # (TAKEOFF, alt) | (GOTO | RTL | LAND | HOLD, 0)
     setpoint: tuple[Vec, Vec, float] | None = None  # position, velocity feed-forward, yaw
     reached: list[int] = field(default_factory=list)
 
@@ -281,13 +281,15 @@ class MissionExecutor:
             self._phase = "start"
         return out
 
-    def _fly(self, now: float, dt: float, target: Vec, radius: float, v: Vehicle, out: Output, yaw: float = math.nan) -> bool:
+    def _fly(self, now: float, dt: float, target: Vec, radius: float, v: Vehicle, out: Output, yaw: float = math.nan,
+             follow: Command = Command.GOTO) -> bool:
         if self._tracker is None:
-            # Every new leg asks the core to follow our setpoints (NAV_GOTO), even when the reported
-            # navigation state already says GOTO: that report can be stale. A "hold" sent just before
-            # (a plan ending in the air, then an RTL or go-to commanded at once) is still in flight, and
-            # requests reach the core in order, so only a later "goto" is sure to be the one it keeps.
-            out.requests.append((Command.GOTO, 0.0))
+            # Every new leg asks the core to follow our setpoints (`follow`: GOTO, or RETURN_TO_LAUNCH on
+            # an RTL's legs so that the vehicle's status says RTL), even when the reported navigation
+            # state already says so: that report can be stale. A "hold" sent just before (a plan ending in
+            # the air, then an RTL or go-to commanded at once) is still in flight, and requests reach the
+            # core in order, so only a later "goto" is sure to be the one it keeps.
+            out.requests.append((follow, 0.0))
             self._tracker = LegTracker(v.position, target, self.speed)
             dx, dy = target[0] - v.position[0], target[1] - v.position[1]
             self._yaw = yaw if math.isfinite(yaw) else (math.atan2(dy, dx) if math.hypot(dx, dy) > 1.0 else v.yaw)
@@ -312,12 +314,12 @@ class MissionExecutor:
             self._phase, self._tracker = "climb", None
         if self._phase == "climb":
             target = (v.position[0], v.position[1], max(v.position[2], altitude)) if self._tracker is None else self._tracker.b
-            if self._fly(now, dt, target, 1.0, v, out):
+            if self._fly(now, dt, target, 1.0, v, out, follow=Command.RETURN_TO_LAUNCH):
                 self._phase, self._tracker = "home", None
             return out
         if self._phase == "home":
             z = self._tracker.b[2] if self._tracker else max(v.position[2], altitude)
-            if self._fly(now, dt, (0.0, 0.0, z), 1.0, v, out):
+            if self._fly(now, dt, (0.0, 0.0, z), 1.0, v, out, follow=Command.RETURN_TO_LAUNCH):
                 self._phase = "land"
             return out
         return self._land(v, out)

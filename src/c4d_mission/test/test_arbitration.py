@@ -114,9 +114,10 @@ def test_hold_land_disarm_and_mode_changes_take_the_vehicle_from_the_plan():
     assert arbiter.command(VehicleCommandId.ARM, GROUNDED).forward
 
 
-def test_a_plan_ending_in_the_air_holds_then_an_rtl_at_once_still_asks_for_goto():
+def test_a_plan_ending_in_the_air_holds_then_an_rtl_at_once_still_asks_to_follow():
     """The MAVSDK CI race: the plan's final HOLD is sent in the step that completes it; an RTL
-    commanded right after, on a status that still says GOTO, must ask for GOTO again."""
+    commanded right after, on a status that still says GOTO, must ask the core to follow again
+    (as RETURN_TO_LAUNCH, so that the status reports RTL: issue 14.11)."""
     arbiter = CommandArbiter()
     plan = Plan((Item("takeoff", z=5.0), Item("waypoint", x=0.0, y=0.0, z=5.0)))
     assert arbiter.accept(plan, HOME, None).plan is not None
@@ -130,7 +131,7 @@ def test_a_plan_ending_in_the_air_holds_then_an_rtl_at_once_still_asks_for_goto(
     assert steps[0][1].requests[-1] == (Command.HOLD, 0.0) and arbiter.mission.status == MissionStatus.COMPLETED
     assert arbiter.command(VehicleCommandId.RETURN_TO_LAUNCH, FLYING).result == CommandResult.ACCEPTED
     (_, mission_out), (_, detour_out) = arbiter.step(t, 0.02, stale)
-    assert mission_out.requests == [] and detour_out.requests == [(Command.GOTO, 0.0)]
+    assert mission_out.requests == [] and detour_out.requests == [(Command.RETURN_TO_LAUNCH, 0.0)]
 
 
 def test_a_refused_disarm_in_the_air_changes_nothing_and_the_plan_waits_for_the_answer():

@@ -12,7 +12,7 @@ from c4d_common.geodesy import GeoOrigin
 from c4d_common.plan_files import load_plan
 from c4d_common.plan_validation import local_point, validate
 from c4d_gnc.core_config import default_config_path
-from c4d_gnc.gnc import Command, Landed, Level, Request, Setpoint
+from c4d_gnc.gnc import Command, Landed, Level, Nav, Request, Setpoint
 from c4d_mission.executor import MissionExecutor, MissionStatus, Vehicle
 from c4d_mission.payload import CameraTrigger
 
@@ -119,7 +119,8 @@ def test_refused_requests_are_retried_then_the_mission_aborts():
 def test_rtl_commanded_right_after_a_plan_ends_in_the_air_is_flown_despite_a_stale_status():
     """The race CI met with MAVSDK: a plan ending in the air completes and asks the core to hold; an
     RTL commanded at once starts while the vehicle status still reports NAV_GOTO (the hold is in
-    flight). The RTL's first leg must still ask for GOTO, after the hold, or the core holds forever."""
+    flight). The RTL's first leg must still ask the core to follow, after the hold, or the core holds
+    forever — as RETURN_TO_LAUNCH, so that the vehicle's status reports RTL, not GOTO (issue 14.11)."""
     from c4d_common.plan import Item, Plan
 
     sitl, dt = Sitl(), 0.02
@@ -138,11 +139,15 @@ def test_rtl_commanded_right_after_a_plan_ends_in_the_air_is_flown_despite_a_sta
 
     rtl.load(Plan((Item("rtl"),), rtl_altitude=8.0), HOME)
     rtl.start()
-    assert sitl.step(rtl, dt, stale).requests == [(Command.GOTO, 0.0)]  # queued after the hold: the core follows the RTL
+    assert sitl.step(rtl, dt, stale).requests == [(Command.RETURN_TO_LAUNCH, 0.0)]  # after the hold: the core follows the RTL
+    navs = []
     while rtl.status == MissionStatus.ACTIVE and loop.t < 120.0:
         loop.run(dt)
         sitl.step(rtl, dt)
+        if not navs or navs[-1] != loop.core.out.nav:
+            navs.append(loop.core.out.nav)
     assert rtl.status == MissionStatus.COMPLETED, (rtl.status, loop.plant.state.position)
+    assert navs == [Nav.RTL, Nav.LAND, Nav.NONE], navs  # returning, its landing, disarmed
     assert not loop.core.out.armed and math.hypot(*loop.plant.state.position[:2]) < 1.0
 
 

@@ -138,7 +138,7 @@ TOPICS: tuple[Topic, ...] = (
 
 # --- services -----------------------------------------------------------------------------
 CORE_COMMAND = Service("gnc/command", "c4d_interfaces/srv/VehicleCommand", "core", ("mission", "health"),
-                       "ARM, DISARM, TAKEOFF, LAND, HOLD, SET_MODE, GOTO; applied at the next tick")
+                       "ARM, DISARM, TAKEOFF, LAND, RETURN_TO_LAUNCH, HOLD, SET_MODE, GOTO; applied at the next tick")
 VEHICLE_COMMAND = Service("vehicle/command", "c4d_interfaces/srv/VehicleCommand", "mission", ("bridge", "health"),
                           "every vehicle command incl. RTL; also the c4d CLI")
 MISSION_UPLOAD = Service("mission/upload", "c4d_interfaces/srv/UploadMission", "mission", ("bridge",),
