@@ -8,14 +8,20 @@ from; this test keeps it the truth. Hidden LatestSampler side nodes (`_<owner>_s
 their owner; ROS infrastructure (/rosout, /parameter_events, the standard parameter and
 type-description services) and this test's own node are not part of the manifest. Offered depth
 is compared only where discovery reports it (Fast DDS does not send it for remote endpoints).
+
+On the same graph: every node's parameters report the values in force (issue 14 item 4), read
+through the nodes' parameter services as `ros2 param dump` does — the core's config, airframe
+and phase_method are core.yaml's, and no parameter is empty where a file gives its value.
 """
 
 from __future__ import annotations
 
 import difflib
 import time
+from functools import partial
 from pathlib import Path
 
+import pytest
 import yaml
 from c4d_testing import installed_executable, spin_for
 
@@ -27,6 +33,10 @@ NODE_SERVICES = {"describe_parameters", "get_parameter_types", "get_parameters",
                  "set_parameters_atomically", "get_type_description"}  # every rclpy node has these
 TEST_NODE_PREFIXES = ("c4d_test", "_c4d_test_samples_")
 SETTLE_S = 30.0  # after the nine nodes are up: the recorder subscribes to topics as it discovers them
+EMPTY_MEANS_NONE = {  # parameters whose empty value in force means "none" (no file behind it)
+    "/mission": {"plan_file"}, "/health": {"link_topic", "unwatched_nodes"}, "/bridge": {"signing_key_file"},
+    "/recorder": {"include", "exclude"},
+}
 
 
 def absolute(name: str) -> str:
@@ -109,18 +119,28 @@ def expected_lines(with_depth: bool) -> list[str]:
     return sorted(out)
 
 
-def test_live_graph_matches_the_manifest(processes, ros_node, tmp_path):
+@pytest.fixture(scope="module")
+def graph_up(module_processes, ros_node, tmp_path_factory):
+    """`c4d up` with the bundled system YAML (bridge on a free port), all nine nodes discovered."""
     node, executor = ros_node
+    tmp_path = tmp_path_factory.mktemp("up")
     doc = yaml.safe_load((ROOT / "src" / "c4d_bringup" / "config" / "sitl.yaml").read_text())
     doc["nodes"]["bridge"]["parameters"]["endpoints"] = ["udpin:127.0.0.1:0"]  # 14550 may be in use by other tests
     (tmp_path / "system.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
     c4d = installed_executable("c4d_bringup", "c4d")
-    up = processes.spawn("up", [c4d, "up", "--config", str(tmp_path / "system.yaml"), "--run-dir", str(tmp_path / "run")])
+    up = module_processes.spawn("up", [c4d, "up", "--config", str(tmp_path / "system.yaml"), "--run-dir",
+                                       str(tmp_path / "run")])
     graph = GraphReader(node)
     assert set(doc["nodes"]) == set(MANIFEST.nodes), "the bundled system YAML and the manifest name different nodes"
     assert spin_for(executor, 45, lambda: set(MANIFEST.nodes) <= graph.nodes() or up.poll() is not None), \
-        f"nodes up: {sorted(graph.nodes())}\n{processes.log_of(up)[-2000:]}"
-    assert up.poll() is None, processes.log_of(up)[-2000:]
+        f"nodes up: {sorted(graph.nodes())}\n{module_processes.log_of(up)[-2000:]}"
+    assert up.poll() is None, module_processes.log_of(up)[-2000:]
+    return up
+
+
+def test_live_graph_matches_the_manifest(graph_up, ros_node):
+    node, executor = ros_node
+    graph = GraphReader(node)
     seen: list[str] = []
     expected: list[str] = []
     last_read = 0.0
@@ -137,3 +157,37 @@ def test_live_graph_matches_the_manifest(processes, ros_node, tmp_path):
     spin_for(executor, SETTLE_S, settled)
     diff = "\n".join(difflib.unified_diff(expected, seen, "manifest", "live graph", lineterm="", n=0))
     assert seen == expected, f"live graph differs from c4d_ros.manifest (- manifest, + live):\n{diff}"
+
+
+def dump_parameters(node, executor, target: str) -> dict[str, object]:
+    """{name: value} of every parameter of node `target`, through its parameter services (what
+    `ros2 param dump` calls: list_parameters, then get_parameters)."""
+    from rclpy.parameter import parameter_value_to_python
+    from rclpy.parameter_client import AsyncParameterClient
+
+    client = AsyncParameterClient(node, target)
+    spin = partial(spin_for, executor)
+    assert client.wait_for_services(timeout_sec=10.0), f"{target}: no parameter services"
+    listed = client.list_parameters()
+    assert spin(15, listed.done), f"{target}: list_parameters timed out"
+    names = list(listed.result().result.names)
+    got = client.get_parameters(names)
+    assert spin(15, got.done), f"{target}: get_parameters timed out"
+    return {name: parameter_value_to_python(value) for name, value in zip(names, got.result().values, strict=True)}
+
+
+def test_parameters_report_the_values_in_force(graph_up, ros_node):
+    node, executor = ros_node
+    dumps = {f"/{name}": dump_parameters(node, executor, f"/{name}") for name in MANIFEST.nodes}
+    core_yaml = ROOT / "src" / "c4d_gnc" / "config" / "core.yaml"
+    doc = yaml.safe_load(core_yaml.read_text())
+    core = dumps["/core"]
+    assert core["phase_method"] == doc["executive"]["phase_method"], core
+    assert core["airframe"] == doc["airframe"], core
+    assert Path(str(core["config"])).resolve() == core_yaml.resolve(), core  # the installed file is a symlink here
+    assert Path(str(dumps["/sim"]["config"])).name == "sim.yaml"
+    assert Path(str(dumps["/bridge"]["config"])).name == "bridge.yaml"
+    assert Path(str(dumps["/health"]["policy_file"])).name == "failsafe.yaml"
+    empty = [f"{target} {name}" for target, values in dumps.items() for name, value in values.items()
+             if value in ("", [""]) and name not in EMPTY_MEANS_NONE.get(target, set())]
+    assert not empty, f"parameters reporting an empty value although a file gives one: {empty}"

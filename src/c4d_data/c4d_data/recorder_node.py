@@ -89,6 +89,7 @@ class RecorderNode:
         self.drainer = Drainer(node)
         self.drainer.service(Trigger, manifest.RECORDER_START.name, self.on_start)
         self.drainer.service(Trigger, manifest.RECORDER_STOP.name, self.on_stop)
+        self.drainer.adopt_node_services()  # parameter services too (`ros2 param dump`): no executor spins this node
         self.pub_status = node.create_publisher(DiagnosticStatus, manifest.RECORDER_STATUS.name, manifest.RECORDER_STATUS.qos)
         self.last_status: dict[str, Any] | None = None  # as last published
         self.last_status_time = 0.0  # [s] monotonic

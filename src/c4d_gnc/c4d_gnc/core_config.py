@@ -30,6 +30,12 @@ class CoreConfig:
     schedule: TickSchedule
     executive_name: str
     report_period_s: float
+    source: Path  # the file read
+    airframe_ref: str  # the airframe as named (bundled name or YAML path): the override or the file's entry
+
+    def parameters(self) -> dict[str, str]:
+        """The core's file-backed parameters as in force: what `ros2 param get core <name>` reports."""
+        return {"config": str(self.source), "airframe": self.airframe_ref, "phase_method": self.schedule.method}
 
 
 def default_config_path() -> Path:
@@ -64,4 +70,4 @@ def load_core_config(path: str | Path | None = None, airframe: str | None = None
     period = executive.get("report_period_s", 1.0)
     if isinstance(period, bool) or not isinstance(period, (int, float)) or period <= 0:
         raise CoreConfigError("executive.report_period_s must be a positive number")
-    return CoreConfig(frame, schedule, str(executive.get("name", "gnc_core")), float(period))
+    return CoreConfig(frame, schedule, str(executive.get("name", "gnc_core")), float(period), path, str(name))

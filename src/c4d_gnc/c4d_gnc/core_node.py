@@ -10,7 +10,8 @@ Interfaces (c4d_ros.manifest, docs/ARCHITECTURE.md):
   serves      gnc/command (arm, disarm, take-off, land, hold, set mode, go-to; applied at the next tick)
   publishes   control/actuators (every tick; the only publisher), vehicle/status (latched, on change
               and at 5 Hz), gnc/executor_stats (every report_period_s), gnc/schedule (latched, once)
-Parameters: PARAMS below (`ros2 param describe core <name>`); all read-only (a change needs a restart).
+Parameters: PARAMS below (`ros2 param describe core <name>`); all read-only (a change needs a restart);
+config, airframe and phase_method report the values in force (the file's, unless overridden).
 SIGINT/SIGTERM: the loop stops, zero motor commands (armed = false) are published, exit 0.
 Bad configuration or parameter: one line on stderr, exit 2, nothing armed.
 """
@@ -30,7 +31,7 @@ from c4d_interfaces.srv import VehicleCommand
 from c4d_ros import node_runtime
 from c4d_ros.drain import Drainer
 from c4d_ros.manifest import ACTUATORS, CORE_COMMAND, EXECUTOR_STATS, NAV_STATE, P_IMU, SCHEDULE, SETPOINT, STATUS
-from c4d_ros.params import ParameterError, Spec, declare_all
+from c4d_ros.params import Declaration, ParameterError, Spec
 from c4d_sched.executive import CyclicExecutive, MonotonicClock
 from c4d_sched.profiler import ExecutorReport, format_table
 
@@ -197,8 +198,9 @@ def main(argv: list[str] | None = None) -> int:
     rclpy = node_runtime.init(argv)
     node = rclpy.create_node(NAME)
     try:
-        params = CoreParams(**declare_all(node, PARAMS))
-        cfg = params.load_config()
+        declared = Declaration(node, PARAMS)
+        cfg = CoreParams(**declared.values).load_config()
+        params = CoreParams(**declared.settle(cfg.parameters()))
     except (ParameterError, CoreConfigError) as exc:
         return node_runtime.fail(NAME, str(exc), node)
     try:

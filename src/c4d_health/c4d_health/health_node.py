@@ -58,7 +58,8 @@ WATCHED = {  # node: topic that proves it alive (>= 5 Hz)
 }
 IN_AIR = (Landed.IN_AIR, Landed.TAKEOFF, Landed.LANDING)
 PARAMETERS = {
-    "policy_file": Spec("", "failsafe policy YAML file [path]; empty: the bundled config/failsafe.yaml", read_only=True),
+    "policy_file": Spec("", "failsafe policy YAML file [path]; empty: the bundled config/failsafe.yaml", read_only=True,
+                        empty=lambda: default_policy()),
     "link_topic": Spec("", f"ground-link heartbeat topic (std_msgs/Header) [topic name], lost after {LINK_TIMEOUT_S:g} s "
                        f"of silence; empty: not watched; the MAVLink bridge's is {manifest.GCS_HEARTBEAT.name}", read_only=True),
     "unwatched_nodes": Spec([""], f"nodes whose liveness is not monitored [node names among {', '.join(WATCHED)}]",

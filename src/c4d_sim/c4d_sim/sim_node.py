@@ -45,7 +45,7 @@ from .simulation import SENSOR_TASKS, Simulation, task_specs
 
 FAULT = "fault."
 CONFIG = Spec("", "sim YAML file (airframe, start, rates, noise, wind); empty = the bundled config/sim.yaml [path]",
-              read_only=True)
+              read_only=True, empty=default_sim_config)
 
 
 def fault_specs(motors: int) -> dict[str, Spec]:
