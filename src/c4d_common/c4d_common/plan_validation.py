@@ -5,7 +5,10 @@ Checks: item count; coordinates present and finite; altitude above home within t
 every leg (segment between consecutive positions, home → take-off → … → RTL) inside the
 geofence inclusion polygon (both ends inside and no crossing of a polygon edge); an endurance
 estimate (legs at the cruise speed in force, holds, climbs and descents) against the remaining
-flight time. A plan with any error is rejected as a whole; warnings do not reject.
+flight time. A plan with any error is rejected as a whole; warnings do not reject. A waypoint
+or loiter flown from the ground (no take-off item before it, as PX4 allows) is preceded by a
+take-off to its altitude, at least `VehicleLimits.takeoff_altitude` (PX4: MIS_TAKEOFF_ALT): the
+mission executor inserts it, the estimate counts it.
 
 Every problem is a `PlanIssue` (kind, item, text): callers decide on the kind, people read the
 text (`str(issue)`), so no decision depends on a message's wording.
@@ -36,6 +39,7 @@ class VehicleLimits:
     default_speed: float = 5.0
     max_speed: float = 8.0
     default_rtl_altitude: float = 15.0
+    takeoff_altitude: float = 2.5  # [m] least altitude of the take-off before a waypoint flown from the ground
 
 
 class IssueKind(Enum):
@@ -44,7 +48,6 @@ class IssueKind(Enum):
     NO_ITEMS = "no items"
     TOO_MANY_ITEMS = "too many items"
     TAKEOFF_ALTITUDE = "take-off altitude"
-    BEFORE_TAKEOFF = "before take-off"
     NO_POSITION = "no finite position"  # the target itself is malformed: never forced
     COORDINATES_OUT_OF_RANGE = "coordinates out of range"  # malformed too
     ABOVE_CEILING = "above the ceiling"
@@ -162,8 +165,6 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
             fly_to(k, (position[0], position[1], item.z))
             airborne = True
         elif item.type in ("waypoint", "loiter"):
-            if not airborne:
-                error(IssueKind.BEFORE_TAKEOFF, k, f"{label(k)}: {item.type} before any take-off")
             if not all(math.isfinite(v) for v in (item.x, item.y, item.z)):
                 error(IssueKind.NO_POSITION, k, f"{label(k)}: {item.type} needs a position and an altitude")
                 continue
@@ -179,6 +180,13 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
             if fence.max_distance > 0 and distance > fence.max_distance:
                 error(IssueKind.TOO_FAR, k,
                       f"{label(k)}: {distance:.0f} m from home exceeds the geofence's {fence.max_distance:g} m")
+            if not airborne:  # flown from the ground: the executor takes off first
+                climb = max(target[2], limits.takeoff_altitude)
+                if climb > ceiling:
+                    error(IssueKind.TAKEOFF_ALTITUDE, k, f"{label(k)}: take-off altitude {climb:g} m above the maximum "
+                                                         f"{ceiling:g} m")
+                fly_to(k, (position[0], position[1], climb))
+                airborne = True
             fly_to(k, target)
             duration += item.hold
         elif item.type == "change_speed":

@@ -84,7 +84,7 @@ class CommandArbiter:
 
     def __init__(self, limits: VehicleLimits | None = None) -> None:
         self.limits = limits or VehicleLimits()
-        self.mission = MissionExecutor()
+        self.mission = MissionExecutor(takeoff_altitude=self.limits.takeoff_altitude)
         self.detour = MissionExecutor()  # RTL and go-to commanded outside a plan
         self._next_id = 1
         self._awaiting = 0  # TAKES_VEHICLE commands forwarded, the core's answer not yet in

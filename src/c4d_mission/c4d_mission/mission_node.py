@@ -11,6 +11,7 @@ command changes nothing). Publishes guidance/setpoint (50 Hz while a mission or 
 flies), mission/state (on change and at 2 Hz) and mission/plan (latched). Mode changes reach
 the core only through its latched gnc/command interface.
 Parameters: plan_file (loaded and validated once home is known), min_battery (0.2),
+takeoff_altitude (2.5 m: least take-off altitude of a plan without a take-off item),
 hover_current_a (endurance estimate, 20 A), state_file (the mission journal: plan and progress
 persisted on every change, so a restarted node resumes an active mission; empty: none).
 
@@ -36,7 +37,7 @@ from c4d_common.geodesy import GeoOrigin
 from c4d_common.geofence import LocalFence
 from c4d_common.plan import Plan, PlanError
 from c4d_common.plan_files import load_plan
-from c4d_common.plan_validation import flight_time_left
+from c4d_common.plan_validation import VehicleLimits, flight_time_left
 from c4d_common.vehicle import Command, CommandResult, FailsafeAction, Landed, MissionStatus, Mode, VehicleCommandId
 from c4d_interfaces.msg import GuidanceSetpoint, MissionPlan, MissionState, VehicleState, VehicleStatus
 from c4d_interfaces.srv import DownloadMission, MissionControl, UploadMission, VehicleCommand
@@ -60,6 +61,9 @@ PARAMETERS = {
                       read_only=True),
     "min_battery": Spec(0.2, "remaining charge below which ARM / TAKEOFF is refused [fraction 0..1]", 0.0, 1.0,
                         read_only=True),
+    "takeoff_altitude": Spec(2.5, "take-off before a waypoint flown from the ground (a plan without a take-off item): "
+                             "to the waypoint's altitude, at least this (PX4 MIS_TAKEOFF_ALT) [m above home]", 0.5, 120.0,
+                             read_only=True),
     "hover_current_a": Spec(20.0, "hover current for the plan's endurance estimate [A]", 0.1, 1000.0, read_only=True),
     "state_file": Spec("", "mission journal: plan and progress, resumed after a restart [file path]; empty: no persistence",
                        read_only=True),
@@ -71,10 +75,10 @@ class MissionNode:
     the ROS-free PreArmChecks and CommandArbiter."""
 
     def __init__(self, node: Any, side_node: Any, plan_file: str, min_battery: float, hover_current_a: float,
-                 state_file: str = "") -> None:
+                 state_file: str = "", takeoff_altitude: float = 2.5) -> None:
         self.node, self.plan_file, self.hover_current_a = node, plan_file, hover_current_a
         self.prearm = PreArmChecks(min_battery)
-        self.arbiter = CommandArbiter()
+        self.arbiter = CommandArbiter(VehicleLimits(takeoff_altitude=takeoff_altitude))
         self.state: VehicleState | None = None
         self.status: VehicleStatus | None = None
         self.battery: BatteryState | None = None

@@ -190,3 +190,64 @@ def test_pause_mid_leg_holds_and_resume_continues_from_where_the_vehicle_is():
         sitl.step(executor, dt)
     assert executor.status == MissionStatus.COMPLETED and executor.last_reached == 2
     assert not loop.core.out.armed and math.dist(loop.plant.state.position[:2], (20.0, 0.0)) < 1.0
+
+
+def fly_until(sitl: Sitl, executor: MissionExecutor, done, timeout: float) -> dict[int, tuple]:
+    """Step `executor` in the closed loop until done() or `timeout` [s]; the reached items and where."""
+    loop, reached = sitl.loop, {}
+    while not done() and loop.t < timeout and executor.status == MissionStatus.ACTIVE:
+        position = loop.plant.state.position
+        for k in sitl.step(executor, 0.02).reached:
+            reached[k] = position
+        loop.run(0.02)
+    return reached
+
+
+def test_set_current_mid_leg_flies_to_the_new_item_and_to_an_rtl_item_home():
+    """Issue 14: MISSION_SET_CURRENT was acknowledged but the vehicle held on the old leg; set to
+    the RTL item it landed on the spot, 28.6 m from home."""
+    from c4d_common.plan import Item, Plan
+
+    plan = Plan((Item("takeoff", z=5.0), Item("waypoint", x=20.0, y=0.0, z=5.0), Item("waypoint", x=0.0, y=15.0, z=5.0),
+                 Item("rtl")), rtl_altitude=6.0)
+    sitl, executor = Sitl(), MissionExecutor()
+    executor.load(plan, HOME)
+    executor.start()
+    fly_until(sitl, executor, lambda: sitl.loop.plant.state.position[0] > 8.0, 60.0)
+    assert executor.current == 1 and executor.set_current(2) == ""
+    t0 = sitl.loop.t
+    reached = fly_until(sitl, executor, lambda: executor.current > 2, t0 + 30.0)
+    assert 1 not in reached and math.dist(reached[2], (0.0, 15.0, 5.0)) <= 1.0, reached  # straight to the new item
+    assert sitl.loop.t - t0 < 15.0  # ~11 m at 5 m/s, not a 35 s wait on the old leg
+
+    executor.start(1)  # again mid-leg towards (20, 0), then the RTL item
+    fly_until(sitl, executor, lambda: sitl.loop.plant.state.position[0] > 8.0, sitl.loop.t + 30.0)
+    assert executor.set_current(3) == ""
+    fly_until(sitl, executor, lambda: False, sitl.loop.t + 90.0)
+    assert executor.status == MissionStatus.COMPLETED and not sitl.loop.core.out.armed
+    assert math.hypot(*sitl.loop.plant.state.position[:2]) < 1.0  # landed home, not where it was
+
+
+def test_a_plan_without_take_off_started_on_the_ground_takes_off_to_the_first_waypoint():
+    """Issue 14 (PX4 semantics): no take-off item — the vehicle takes off to the first waypoint's
+    altitude (at least takeoff_altitude) and flies the plan."""
+    from c4d_common.plan import Item, Plan
+
+    plan = Plan((Item("waypoint", x=6.0, y=0.0, z=4.0), Item("waypoint", x=6.0, y=6.0, z=4.0), Item("land")))
+    assert validate(plan, HOME).ok
+    sitl, executor = Sitl(), MissionExecutor(takeoff_altitude=2.5)
+    executor.load(plan, HOME)
+    executor.start()
+    first = sitl.step(executor, 0.02)
+    assert first.requests == [(Command.TAKEOFF, 4.0)]
+    peak = 0.0
+    reached = {}
+    while executor.status == MissionStatus.ACTIVE and sitl.loop.t < 90.0:
+        position = sitl.loop.plant.state.position
+        for k in sitl.step(executor, 0.02).reached:
+            reached[k] = position
+        sitl.loop.run(0.02)
+        peak = max(peak, position[2])
+    assert executor.status == MissionStatus.COMPLETED and not sitl.loop.core.out.armed
+    assert math.dist(reached[0], (6.0, 0.0, 4.0)) <= 1.0 and math.dist(reached[1], (6.0, 6.0, 4.0)) <= 1.0, reached
+    assert peak < 4.6, peak

@@ -57,8 +57,21 @@ def test_endurance_and_limits():
     fast = plan_from_yaml_text("items:\n  - {type: takeoff, altitude: 5}\n  - {type: change_speed, speed: 20}\n"
                                "  - {type: land}\n")
     assert any("speed 20 m/s above" in e for e in validate(fast, HOME, VehicleLimits(max_speed=8)).errors)
-    early = plan_from_yaml_text("items:\n  - {type: waypoint, east: 1, north: 1, alt: 5}\n")
-    assert any("before any take-off" in e for e in validate(early, HOME).errors)
+
+
+def test_a_plan_without_take_off_is_flown_from_the_ground_with_an_implicit_climb():
+    """Issue 14 (PX4 semantics): a waypoint before any take-off item was refused ("before any
+    take-off"); it is valid, and the estimate counts the climb to its altitude, at least the
+    vehicle's take-off altitude (MIS_TAKEOFF_ALT)."""
+    early = plan_from_yaml_text("items:\n  - {type: waypoint, east: 3, north: 4, alt: 5}\n  - {type: land}\n")
+    result = validate(early, HOME)
+    assert result.ok and not result.warnings, result.errors
+    assert result.path_length == pytest.approx(5.0 + 5.0 + 5.0)  # climb 5, 5 m across, descend 5
+    higher = validate(early, HOME, VehicleLimits(takeoff_altitude=8.0))
+    assert higher.ok and higher.path_length == pytest.approx(8.0 + 3.0 + 5.0 + 5.0)  # climb 8, down 3, across, land
+    capped = plan_from_yaml_text("geofence: {max_altitude: 6}\nitems:\n  - {type: waypoint, east: 3, north: 4, alt: 5}\n")
+    assert validate(capped, HOME, VehicleLimits(takeoff_altitude=8.0)).errors == (
+        "item 1: take-off altitude 8 m above the maximum 6 m",)
 
 
 @pytest.mark.parametrize("text,message", [
