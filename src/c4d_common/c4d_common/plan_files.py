@@ -1,4 +1,5 @@
-"""Plan files on disk: c4d YAML plans and QGroundControl `.plan` JSON, chosen by suffix.
+"""Plan files on disk: c4d YAML plans, QGroundControl `.plan` JSON (chosen by suffix) and QGC WPL
+110 waypoint files (MAVProxy, Mission Planner, QGroundControl export; chosen by their first line).
 
 Separate from `plan` (the model) because the QGroundControl reader needs the MAVLink item
 mapping of `mavlink_items`, which itself builds on the model: plan <- mavlink_items <- plan_files.
@@ -9,8 +10,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .mavlink_items import item_from_mavlink
-from .plan import NAN, Geofence, Plan, PlanError, plan_from_yaml_text
+from .mavlink_items import FRAME_GLOBAL, FRAME_GLOBAL_INT, item_from_mavlink
+from .plan import NAN, Geofence, Item, Plan, PlanError, plan_from_yaml_text
 
 
 def plan_from_qgc_text(text: str) -> Plan:
@@ -46,10 +47,48 @@ def plan_from_qgc_text(text: str) -> Plan:
     return Plan(tuple(items), Geofence(tuple(polygon)), "qgc-plan", float(mission.get("cruiseSpeed") or 0.0))
 
 
+WPL_HEADER = "QGC WPL 110"
+
+
+def plan_from_wpl_text(text: str) -> Plan:
+    """QGC WPL 110: a header line, then one row per item, `seq current frame command param1..4 x y z
+    autocontinue` (tab or space separated). Row 0 is the planned home, not a mission item (as in
+    ArduPilot and MAVProxy): it is skipped, and its altitude turns absolute-altitude rows
+    (frame 0) into altitudes above home. Items are named by their row number (1 = first item)."""
+    lines = text.splitlines()
+    if not lines or lines[0].strip() != WPL_HEADER:
+        raise PlanError(f"not a waypoint file (first line must be '{WPL_HEADER}')")
+    items: list[Item] = []
+    home_altitude: float | None = None
+    expected = 0  # the next row number
+    for number, line in enumerate(lines[1:], start=2):
+        fields = line.split()
+        if not fields or line.lstrip().startswith("#"):
+            continue
+        where = f"line {number}"
+        if len(fields) != 12:
+            raise PlanError(f"{where}: 12 values needed, got {len(fields)}")
+        try:
+            seq, _current, frame, command = (int(v) for v in fields[:4])
+            values = [float(v) for v in fields[4:11]]
+        except ValueError:
+            raise PlanError(f"{where}: seq, current, frame and command must be integers, the rest numbers") from None
+        if seq != expected:
+            raise PlanError(f"{where}: row {seq} where row {expected} was expected (row 0 is home)")
+        expected += 1
+        if seq == 0:  # the home row: not an item
+            home_altitude = values[6] if frame in (FRAME_GLOBAL, FRAME_GLOBAL_INT) else None
+            continue
+        items.append(item_from_mavlink(command, frame, values, home_altitude, where=f"item {seq}"))
+    return Plan(tuple(items), Geofence(), "qgc-wpl")
+
+
 def load_plan(path: str | Path) -> Plan:
     path = Path(path)
     try:
         text = path.read_text()
     except OSError as exc:
         raise PlanError(f"cannot read {path}: {exc.strerror}") from None
+    if text.lstrip().startswith(WPL_HEADER):
+        return plan_from_wpl_text(text)
     return plan_from_qgc_text(text) if path.suffix == ".plan" else plan_from_yaml_text(text)
