@@ -101,3 +101,16 @@ class MissionAction(IntEnum):  # MissionControl.Request.ACTION_*
     RESUME = 3
     CLEAR = 4
     SET_CURRENT = 5
+
+
+class UploadRefusal(IntEnum):  # UploadMission.Response REFUSAL_*: why a plan was refused
+    NONE = 0
+    INVALID = 1  # the plan fails validation: fix it
+    NO_HOME = 2  # the estimator has no origin yet: retry
+    BATTERY_UNKNOWN = 3  # no battery state yet, endurance unknown: retry
+    MISSION_ACTIVE = 4  # the running plan cannot be replaced
+
+    @property
+    def retry(self) -> bool:
+        """The vehicle cannot judge the plan yet: the same upload may be accepted later."""
+        return self in (UploadRefusal.NO_HOME, UploadRefusal.BATTERY_UNKNOWN)

@@ -12,7 +12,7 @@ import pytest
 
 from c4d_common import vehicle
 from c4d_interfaces.msg import GuidanceSetpoint, MissionState, VehicleStatus
-from c4d_interfaces.srv import MissionControl, VehicleCommand
+from c4d_interfaces.srv import MissionControl, UploadMission, VehicleCommand
 
 CONTRACTS = [
     (vehicle.Mode, VehicleStatus, "MODE_", True),
@@ -26,6 +26,7 @@ CONTRACTS = [
     (vehicle.CommandResult, MissionControl.Response, "RESULT_", True),
     (vehicle.MissionStatus, MissionState, "STATE_", True),
     (vehicle.MissionAction, MissionControl.Request, "ACTION_", True),
+    (vehicle.UploadRefusal, UploadMission.Response, "REFUSAL_", True),
 ]
 
 
