@@ -239,11 +239,19 @@ class BridgeNode:
             except ValueError as exc:
                 ack(M.MAV_RESULT_DENIED, str(exc))
         elif action.kind == Kind.REQUEST:
-            reply = self.one_shot(action.fields["msg_id"])
-            # DENIED without a STATUSTEXT: GCSs probe many optional messages; no log noise for each
-            ack(M.MAV_RESULT_ACCEPTED if reply is not None else M.MAV_RESULT_DENIED)
+            msg_id = action.fields["msg_id"]
+            reply = self.one_shot(msg_id)
+            # without a STATUSTEXT: GCSs probe many optional messages; no log noise for each. A message
+            # we send once its data exists (HOME_POSITION before home is set) is TEMPORARILY_REJECTED
+            ack(M.MAV_RESULT_ACCEPTED if reply is not None else
+                M.MAV_RESULT_TEMPORARILY_REJECTED if self.can_send(msg_id) else M.MAV_RESULT_DENIED)
             if reply is not None:
                 self.router.send(reply)
+
+    @staticmethod
+    def can_send(msg_id: int) -> bool:
+        """True for a message the bridge sends when it has the data (a telemetry stream's)."""
+        return msg_id in M.mavlink_map and M.mavlink_map[msg_id].msgname in STREAM_ENCODERS
 
     def one_shot(self, msg_id: int):
         """The reply to REQUEST_MESSAGE for `msg_id`, or None when it cannot be sent."""

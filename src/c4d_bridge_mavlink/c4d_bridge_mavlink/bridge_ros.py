@@ -20,6 +20,7 @@ from c4d_ros import manifest as topics
 from c4d_ros.drain import LatestSampler
 
 from .encoders import Snapshot
+from .health_report import FailsafeAnnouncer
 from .manual import PilotSetpoint
 from .mission_protocol import FENCE, MISSION, WireItem
 from .params import ParamSpec
@@ -44,7 +45,6 @@ class Reported:
     """What the GCS was last told, so that events are sent once per change."""
 
     reached: int = -1  # last MISSION_ITEM_REACHED
-    failsafe: str = FailsafeAction.NONE.name
     dead: str = ""  # dead nodes of the last "node lost" STATUSTEXT
 
 
@@ -75,7 +75,8 @@ class RosSide:
                 (VehicleStatus, topics.STATUS, self._on_status), (BatteryState, topics.BATTERY, self._on_battery),
                 (NavSatFix, topics.P_GPS, self._on_gps), (MissionState, topics.MISSION_STATE, self._on_mission),
                 (MissionPlan, topics.MISSION_PLAN, self._on_plan), (DiagnosticStatus, topics.HEALTH_SUMMARY, self._on_health),
-                (CaptureEvent, topics.CAPTURES, self._on_capture), (ExecutorStats, topics.EXECUTOR_STATS, self._on_stats)):
+                (CaptureEvent, topics.CAPTURES, self._on_capture), (ExecutorStats, topics.EXECUTOR_STATS, self._on_stats),
+                (DiagnosticArray, topics.P_HEALTH, self._on_sensors)):
             node.create_subscription(msg_type, topic.name, callback, topic.qos)
         self.pub_heartbeat = node.create_publisher(Header, topics.GCS_HEARTBEAT.name, topics.GCS_HEARTBEAT.qos)
         self.pub_pilot = node.create_publisher(GuidanceSetpoint, topics.SETPOINT.name, topics.SETPOINT.qos)
@@ -89,6 +90,7 @@ class RosSide:
         self.Header, self.DiagnosticArray, self.DiagnosticStatus = Header, DiagnosticArray, DiagnosticStatus
         self.VehicleCommand, self.UploadMission, self.MissionControl = VehicleCommand, UploadMission, MissionControl
         self.last = Reported()
+        self.failsafes = FailsafeAnnouncer()
         self.fence: tuple[tuple[float, float], ...] = ()
         self.plan_msg = None
         self.pending_params: list[tuple[ParamSpec, float]] = []
@@ -141,6 +143,12 @@ class RosSide:
     def _on_status(self, msg) -> None:
         s = self.snapshot
         s.armed, s.flight_mode, s.nav_state, s.landed_state = msg.armed, msg.flight_mode, msg.nav_state, msg.landed_state
+        s.status_known = True
+
+    def _on_sensors(self, msg) -> None:
+        """perception/health: one status per sensor, OK or not (SYS_STATUS sensor bits)."""
+        for status in msg.status:
+            self.snapshot.health.sensor_ok[status.hardware_id] = status.level == self.DiagnosticStatus.OK
 
     def _on_battery(self, msg) -> None:
         s = self.snapshot
@@ -193,13 +201,13 @@ class RosSide:
         failsafe, dead = values.get("failsafe", FailsafeAction.NONE.name), values.get("dead_nodes", "")
         action = failsafe_action(failsafe)
         self.snapshot.failsafe = action
-        if failsafe != self.last.failsafe and failsafe != FailsafeAction.WARN.name:
-            cleared = failsafe == FailsafeAction.NONE.name
-            self.statustext(M.MAV_SEVERITY_NOTICE if cleared else M.MAV_SEVERITY_CRITICAL,
-                            "failsafe cleared" if cleared else f"failsafe {failsafe}: {values.get('reason', '')}")
+        self.snapshot.health.on_summary(values)
+        said = self.failsafes.update(action, values.get("reason", ""))
+        if said is not None:
+            self.statustext(said.severity, said.text)
         if dead != self.last.dead and dead:
             self.statustext(M.MAV_SEVERITY_ERROR, f"node lost: {dead}")
-        self.last.failsafe, self.last.dead = failsafe, dead
+        self.last.dead = dead
 
     def _on_capture(self, msg) -> None:
         if self.router:

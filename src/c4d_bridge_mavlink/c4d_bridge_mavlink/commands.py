@@ -3,7 +3,7 @@
 What: `translate(msg, ctx)` turns a command into an `Action`: a vehicle command for the mission
 node's vehicle/command service (arm, disarm, take-off, land, RTL, hold, set mode, go-to), a
 mission-control action (MISSION_START, DO_SET_MODE AUTO.MISSION), a telemetry change
-(SET_MESSAGE_INTERVAL, REQUEST_MESSAGE, REQUEST_AUTOPILOT_CAPABILITIES) — or an immediate
+(SET_MESSAGE_INTERVAL, REQUEST_MESSAGE, REQUEST_AUTOPILOT_CAPABILITIES, GET_HOME_POSITION) — or an immediate
 COMMAND_ACK result (UNSUPPORTED for unknown commands, DENIED for invalid parameters). The node
 executes the action and ACKs with the service's result code (c4d result codes are MAV_RESULT).
 
@@ -112,6 +112,8 @@ def translate(msg, ctx: Context) -> Action:
         return Action(Kind.REQUEST, fields={"msg_id": int(p[0])})
     if c == M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
         return Action(Kind.REQUEST, fields={"msg_id": M.MAVLINK_MSG_ID_AUTOPILOT_VERSION})
+    if c == M.MAV_CMD_GET_HOME_POSITION:  # deprecated for REQUEST_MESSAGE, still sent by MAVProxy
+        return Action(Kind.REQUEST, fields={"msg_id": M.MAVLINK_MSG_ID_HOME_POSITION})
     return Action(Kind.ACK, M.MAV_RESULT_UNSUPPORTED, f"command {c} not supported")
 
 

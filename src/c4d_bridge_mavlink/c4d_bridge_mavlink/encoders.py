@@ -16,6 +16,7 @@ from c4d_common import quat
 from c4d_common.vehicle import FailsafeAction, Landed, Mode, Nav
 
 from .frames import attitude_to_ned, compass_heading_deg, enu_to_ned, flu_to_frd, px4_custom_mode
+from .health_report import VehicleHealth, sensor_bits
 from .signing import mavlink
 
 M = mavlink
@@ -23,12 +24,6 @@ NAN = float("nan")
 CAPABILITIES = (M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
                 | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
                 | M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE)
-SENSORS = (M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL | M.MAV_SYS_STATUS_SENSOR_3D_MAG
-           | M.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE | M.MAV_SYS_STATUS_SENSOR_GPS
-           | M.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
-           | M.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION | M.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
-           | M.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | M.MAV_SYS_STATUS_SENSOR_BATTERY | M.MAV_SYS_STATUS_AHRS
-           | M.MAV_SYS_STATUS_PREARM_CHECK)
 VERSION = (0 << 24) | (1 << 16) | (0 << 8) | 255  # 0.1.0 release (major, minor, patch, FIRMWARE_VERSION_TYPE)
 LANDED = {Landed.UNDEFINED: M.MAV_LANDED_STATE_UNDEFINED, Landed.ON_GROUND: M.MAV_LANDED_STATE_ON_GROUND,
           Landed.IN_AIR: M.MAV_LANDED_STATE_IN_AIR, Landed.TAKEOFF: M.MAV_LANDED_STATE_TAKEOFF,
@@ -40,6 +35,7 @@ class Snapshot:
     """The latest of everything the bridge reports; NaN/None = not known yet."""
 
     boot_s: float = 0.0  # monotonic time of the bridge start (time_boot_ms origin)
+    status_known: bool = False  # vehicle/status heard: until then armed / mode / landed are not known
     armed: bool = False
     flight_mode: int = Mode.AUTO
     nav_state: int = Nav.NONE
@@ -60,7 +56,7 @@ class Snapshot:
     battery_consumed_mah: float = NAN
     throttle: float = 0.0  # 0–1, mean motor output
     load: float = NAN  # 0–1 executor load
-    sensors_unhealthy: int = 0  # MAV_SYS_STATUS_SENSOR bits
+    health: VehicleHealth = field(default_factory=VehicleHealth)  # SYS_STATUS sensor bits' inputs
     mission_current: int = 0
     mission_total: int = 0
     mission_state: int = 0  # MISSION_STATE enum
@@ -76,7 +72,11 @@ def _i(value: float, scale: float, unknown: int) -> int:
     return int(round(value * scale)) if math.isfinite(value) else unknown
 
 
-def heartbeat(s: Snapshot) -> M.MAVLink_heartbeat_message:
+def heartbeat(s: Snapshot) -> M.MAVLink_heartbeat_message | None:
+    """The vehicle's HEARTBEAT; None (nothing sent) until its status has been heard: a restarted
+    bridge must not claim a state it does not know (PX4 sends no heartbeat before it knows its own)."""
+    if not s.status_known:
+        return None
     base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED
     if s.flight_mode == Mode.AUTO:
         base |= M.MAV_MODE_FLAG_AUTO_ENABLED | M.MAV_MODE_FLAG_GUIDED_ENABLED
@@ -93,8 +93,9 @@ def heartbeat(s: Snapshot) -> M.MAVLink_heartbeat_message:
 
 
 def sys_status(s: Snapshot) -> M.MAVLink_sys_status_message:
+    bits = sensor_bits(s.health, s.status_known, s.valid_attitude, s.valid_position, s.home is not None)
     return M.MAVLink_sys_status_message(
-        SENSORS, SENSORS, SENSORS & ~s.sensors_unhealthy, _i(s.load, 1000, 0) if math.isfinite(s.load) else 0,
+        bits.present, bits.enabled, bits.health, _i(s.load, 1000, 0) if math.isfinite(s.load) else 0,
         _i(s.battery_voltage, 1000, 0xFFFF), _i(s.battery_current, 100, -1), _i(s.battery_remaining, 100, -1),
         0, min(s.comm_errors, 0xFFFF), 0, 0, 0, 0, 0, 0, 0)
 

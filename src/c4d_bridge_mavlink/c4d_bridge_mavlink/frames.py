@@ -48,10 +48,15 @@ def compass_heading_deg(q_flu_enu: quat.Quat) -> float:
 
 
 def px4_custom_mode(flight_mode: int, nav_state: int) -> int:
-    """HEARTBEAT.custom_mode (PX4 layout) for a c4d mode / navigation state (c4d_common.vehicle Mode / Nav)."""
+    """HEARTBEAT.custom_mode (PX4 layout) for a c4d mode / navigation state (c4d_common.vehicle Mode / Nav).
+
+    AUTO with nothing to fly (NAV_NONE: disarmed, or armed on the ground before a take-off, e.g.
+    after a landing) is AUTO.LOITER, PX4's Hold, as PX4 reports a landed vehicle: AUTO.READY is
+    not a mode stock GCSs name (MAVProxy shows UNKNOWN). A go-to (NAV_GOTO outside a plan) is
+    AUTO.LOITER too, as PX4 reports a reposition; NAV_RTL is AUTO.RTL."""
     if flight_mode == Mode.AUTO:
         sub = {Nav.TAKEOFF: AUTO_TAKEOFF, Nav.MISSION: AUTO_MISSION, Nav.HOLD: AUTO_LOITER, Nav.GOTO: AUTO_LOITER,
-               Nav.RTL: AUTO_RTL, Nav.LAND: AUTO_LAND}.get(nav_state, AUTO_READY)
+               Nav.RTL: AUTO_RTL, Nav.LAND: AUTO_LAND}.get(nav_state, AUTO_LOITER)
         return (PX4_AUTO << 16) | (sub << 24)
     main = {Mode.RATE: PX4_ACRO, Mode.ATTITUDE: PX4_STABILIZED, Mode.POSITION: PX4_POSCTL, Mode.KILL: PX4_MANUAL}
     return main.get(flight_mode, PX4_POSCTL) << 16

@@ -86,7 +86,7 @@ P_BARO = Topic("perception/baro", "sensor_msgs/msg/FluidPressure", S, "50 Hz", (
 P_MAG = Topic("perception/mag", "sensor_msgs/msg/MagneticField", S, "50 Hz", ("perception",), ("navigation",))
 P_RANGE_DOWN = Topic("perception/range_down", "sensor_msgs/msg/Range", S, "50 Hz", ("perception",), ("navigation",))
 P_HEALTH = Topic("perception/health", "diagnostic_msgs/msg/DiagnosticArray", STATS, "5 Hz", ("perception",),
-                 ("health", "mission"), "sensor health")
+                 ("health", "mission", "bridge"), "sensor health (bridge: SYS_STATUS sensor bits)")
 # --- navigation ---------------------------------------------------------------------------
 NAV_STATE = Topic("navigation/state", "c4d_interfaces/msg/VehicleState", ST, "500 Hz (per IMU sample)", ("navigation",),
                   ("core", "mission", "payload", "health", "bridge"), "full estimated state")
