@@ -168,10 +168,13 @@ class RosSide:
 
     def _on_mission(self, msg) -> None:
         s = self.snapshot
-        s.mission_current, s.mission_total = msg.current_item, msg.total_items
+        if self.missions is not None:  # the GCS's numbering (a home row it uploaded counts)
+            self.missions.active_plan_id = msg.plan_id
+        wire = (lambda i: self.missions.wire_seq(msg.plan_id, i)) if self.missions is not None else (lambda i: i)
+        s.mission_current, s.mission_total = wire(msg.current_item), wire(msg.total_items)
         s.mission_state = MISSION_STATE.get(msg.state, 0)
         if msg.last_reached_item >= 0 and msg.last_reached_item != self.last.reached and self.router:
-            self.router.send(M.MAVLink_mission_item_reached_message(msg.last_reached_item))
+            self.router.send(M.MAVLink_mission_item_reached_message(wire(msg.last_reached_item)))
         self.last.reached = msg.last_reached_item
 
     def _on_plan(self, msg) -> None:
@@ -272,7 +275,10 @@ class RosSide:
                    if r is None else ack(r.result, r.message))
 
     def mission_control(self, fields: dict, ack) -> None:
-        item = max(0, int(fields.get("item", 0)))
+        item = int(fields.get("item", 0))
+        if fields["action"] == MissionAction.START and self.missions is not None:
+            item = self.missions.plan_index(item)  # MISSION_START's first item counts an uploaded home row
+        item = max(0, item)
         self._call(self.control, self.MissionControl.Request(action=fields["action"], item=item),
                    lambda r: ack(M.MAV_RESULT_TEMPORARILY_REJECTED, "mission node not reachable") if r is None
                    else ack(r.result, r.message))
@@ -311,7 +317,7 @@ class RosSide:
             if not reply.accepted:
                 self.statustext(M.MAV_SEVERITY_WARNING, reply.errors[0] if reply.errors else "mission rejected")
                 return finish(M.MAV_MISSION_INVALID)
-            finish(M.MAV_MISSION_ACCEPTED)
+            finish(M.MAV_MISSION_ACCEPTED, reply.plan_id)
 
         self._call(self.upload, self.UploadMission.Request(plan=plan_to_msg(plan)), verdict)
 

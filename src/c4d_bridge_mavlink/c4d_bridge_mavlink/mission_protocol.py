@@ -10,6 +10,15 @@ timeout (default 1.5 s, 5 retries), after which the transfer is cancelled
 one (spec), items for a transfer that is not running get MAV_MISSION_ERROR, a count above the
 limit MAV_MISSION_NO_SPACE. Nothing here raises on input.
 
+Home row: ground stations of the QGC WPL tradition (MAVProxy `wp load`, Mission Planner) send the
+planned home as item 0, a NAV_WAYPOINT in an absolute-altitude frame, before relative-altitude
+items. It is not a mission item (PX4 and ArduPilot fly from item 1): `home_row_of` recognises it,
+the mission node gets the items after it, and while the plan accepted from that upload is the
+active one, the ground station's numbering is kept — MISSION_CURRENT, MISSION_ITEM_REACHED and
+MISSION_SET_CURRENT count the home row (`wire_seq` / `plan_index`) and a download returns it first.
+A first item in an absolute frame with no relative-altitude item after it (a QGC plan in AMSL
+mode) is an ordinary waypoint.
+
 Why a separate state machine: the protocol's sequencing, timeouts and result codes are the part
 ground stations are picky about; here they are tested frame by frame without ROS. Acceptance is
 asynchronous: a complete upload goes to `on_upload` (the node asks the mission node to validate)
@@ -61,6 +70,14 @@ def item_message(item: WireItem, seq: int, mission_type: int, target: tuple[int,
                                               int(item.autocontinue), p[0], p[1], p[2], p[3], x, y, p[6], mission_type)
 
 
+def home_row_of(items: list[WireItem]) -> WireItem | None:
+    """Item 0 when it is a QGC WPL home row (module docstring), else None."""
+    if len(items) < 2 or items[0].command != M.MAV_CMD_NAV_WAYPOINT or items[0].frame != M.MAV_FRAME_GLOBAL_INT:
+        return None
+    relative = (M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT)
+    return items[0] if any(i.frame in relative for i in items[1:]) else None
+
+
 @dataclass
 class _Transfer:
     kind: str  # "upload" | "download" | "validating"
@@ -71,6 +88,7 @@ class _Transfer:
     items: list | None = None
     deadline: float = 0.0
     retries: int = 0
+    home_row: WireItem | None = None  # an upload's home row, not handed to on_upload
 
 
 class MissionServer:
@@ -82,6 +100,9 @@ class MissionServer:
         self.max_items, self.timeout_s, self.max_retries = max_items, timeout_s, retries
         self.stored: dict[int, list[WireItem]] = {MISSION: [], FENCE: []}  # what a download returns
         self.transfer: _Transfer | None = None
+        self.home_row: WireItem | None = None  # of the plan uploaded with one (plan id home_plan_id)
+        self.home_plan_id = -1
+        self.active_plan_id = 0  # the mission node's active plan (the node reports it)
         self.stats = {"uploads": 0, "downloads": 0, "rejected": 0, "cancelled": 0, "retries": 0}
 
     # ------------------------------------------------------------------ helpers
@@ -95,6 +116,17 @@ class MissionServer:
     @staticmethod
     def _type(msg) -> int:
         return getattr(msg, "mission_type", MISSION)
+
+    def _offset(self, plan_id: int) -> int:
+        return 1 if self.home_row is not None and plan_id == self.home_plan_id else 0
+
+    def wire_seq(self, plan_id: int, index: int) -> int:
+        """The sequence number a GCS knows for item `index` (or count) of plan `plan_id`."""
+        return index + self._offset(plan_id) if index >= 0 else index
+
+    def plan_index(self, seq: int) -> int:
+        """The active plan's item index of a GCS sequence number (-1: the home row)."""
+        return seq - self._offset(self.active_plan_id)
 
     # ------------------------------------------------------------------ input
     def handle(self, msg, now: float) -> None:
@@ -156,16 +188,20 @@ class MissionServer:
             self._request()
             return
         t.kind = "validating"
-        self.on_upload(t.mission_type, list(t.items))
+        t.home_row = home_row_of(t.items) if t.mission_type == MISSION else None
+        self.on_upload(t.mission_type, t.items[1:] if t.home_row is not None else list(t.items))
 
-    def finish_upload(self, result: int) -> None:
-        """Verdict for the upload handed to on_upload: MAV_MISSION_ACCEPTED stores it."""
+    def finish_upload(self, result: int, plan_id: int = 0) -> None:
+        """Verdict for the upload handed to on_upload: MAV_MISSION_ACCEPTED stores it (a MISSION
+        upload as plan `plan_id`, with its home row if it had one)."""
         t = self.transfer
         if t is None or t.kind != "validating":
             return
         self.transfer = None
         if result == M.MAV_MISSION_ACCEPTED:
-            self.stored[t.mission_type] = list(t.items)
+            self.stored[t.mission_type] = t.items[1:] if t.home_row is not None else list(t.items)
+            if t.mission_type == MISSION:
+                self.home_row, self.home_plan_id = t.home_row, plan_id
             self.stats["uploads"] += 1
         else:
             self.stats["rejected"] += 1
@@ -179,6 +215,8 @@ class MissionServer:
         if self.transfer is not None and self.transfer.kind in ("upload", "validating"):
             return self._ack(partner, M.MAV_MISSION_DENIED, mtype)
         items = self.stored[mtype]
+        if mtype == MISSION and self._offset(self.active_plan_id) and items:
+            items = [self.home_row, *items]  # as the GCS uploaded it
         self.transfer = _Transfer("download", mtype, partner, len(items), items=list(items), deadline=now + self.timeout_s) \
             if items else None
         self.send(M.MAVLink_mission_count_message(partner[0], partner[1], len(items), mtype))
@@ -210,10 +248,12 @@ class MissionServer:
             for t in (MISSION, FENCE):
                 if mtype in (t, M.MAV_MISSION_TYPE_ALL):
                     self.stored[t] = []
+                    self.home_row = None if t == MISSION else self.home_row
         self._ack(partner, result, mtype)
 
     def _set_current(self, msg, partner, now) -> None:
-        if not self.on_set_current(msg.seq):
+        index = self.plan_index(msg.seq)
+        if index < 0 or not self.on_set_current(index):
             self.send(M.MAVLink_statustext_message(M.MAV_SEVERITY_WARNING, f"mission item {msg.seq} does not exist".encode(),
                                                    0, 0))
 
