@@ -25,6 +25,7 @@ from .manual import PilotSetpoint
 from .mission_protocol import FENCE, MISSION, WireItem
 from .params import ParamSpec
 from .signing import mavlink
+from .statustext import StatusTextChunker
 
 M = mavlink
 MISSION_STATE = {MissionStatus.NO_PLAN: M.MISSION_STATE_NO_MISSION, MissionStatus.READY: M.MISSION_STATE_NOT_STARTED,
@@ -95,6 +96,7 @@ class RosSide:
         self.plan_msg = None
         self.pending_params: list[tuple[ParamSpec, float]] = []
         self.router = self.missions = self.params = None
+        self.texts = StatusTextChunker()
 
     def bind(self, router, missions, params) -> None:
         self.router, self.missions, self.params = router, missions, params
@@ -220,7 +222,8 @@ class RosSide:
     # ------------------------------------------------------------------ MAVLink out
     def statustext(self, severity: int, text: str) -> None:
         if self.router:
-            self.router.send(M.MAVLink_statustext_message(severity, text.encode()[:50], 0, 0))
+            for chunk in self.texts.messages(severity, text):  # whole, in MAVLink 2 chunks when long
+                self.router.send(chunk)
 
     def ack(self, msg, result: int, reason: str = "") -> None:
         self.router.send(M.MAVLink_command_ack_message(msg.command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
@@ -248,7 +251,8 @@ class RosSide:
             worst = max((r.max_delay_ratio for r in schedulers[name].stream_stats()), default=0.0)
             values = {"rx_bytes": st.rx_bytes, "tx_bytes": st.tx_bytes, "rx_frames": st.rx_frames, "tx_frames": st.tx_frames,
                       "rx_errors": st.rx_errors, "unsigned_rejected": st.errors.get("unsigned", 0),
-                      "bad_signature": st.errors.get("bad_signature", 0), "telemetry_bytes_s": f"{ls.bytes_per_second:.0f}",
+                      "bad_signature": st.errors.get("bad_signature", 0), "junk_datagrams": st.junk,
+                      "telemetry_bytes_s": f"{ls.bytes_per_second:.0f}",
                       "utilisation": f"{ls.utilisation:.3f}", "queue_drops": ls.dropped,
                       "max_delay_ratio": f"{worst:.3f}", "queue_max_bytes": ls.queue_max_bytes}
             array.status.append(status_t(level=status_t.OK, name=f"bridge/endpoint {name}", hardware_id=name,

@@ -8,8 +8,16 @@ What:
   optional signing with the endpoint's link id), raw byte I/O, and `EndpointStats` (bytes and
   frames both ways, receive errors counted by reason: crc, unsigned, bad_signature, unknown_id,
   prefix, length, incompat_flags, truncated, malformed, io). A udpin endpoint learns its GCS peers
-  from incoming datagrams (at most MAX_PEERS, least recently heard evicted) and sends to all of
-  them; each datagram is parsed on its own (a truncated frame never swallows the next datagram).
+  from incoming datagrams and sends to all of them; each datagram is parsed on its own (a truncated
+  frame never swallows the next datagram).
+- Peer admission (udpin): a source address takes one of the MAX_PEERS routing slots (least
+  recently admitted-and-heard evicted) only with a datagram holding at least one accepted frame
+  that is *authenticated*: any accepted frame without signing, a frame with a valid signature when
+  signing is on (an unsigned RADIO_STATUS is accepted for processing but admits nobody). Datagrams
+  from unknown sources that admit nothing are dropped and counted (`EndpointStats.junk`); one that
+  cannot even hold a frame (too short, no MAVLink start byte) is dropped before parsing. Why: a
+  flood of junk from many addresses used to fill the table and evict the real GCS, whose
+  telemetry then stopped (issue 14 item 13).
 - `Router`: several endpoints behind one `selectors` loop. `poll(timeout)` reads every ready
   endpoint, parses, learns routes, forwards, and returns the messages to process locally;
   `send(msg)` sends our own message by the routing rules.
@@ -109,6 +117,7 @@ class EndpointStats:
     tx_frames: int = 0
     tx_dropped: int = 0  # frames not sent (no peer yet, socket error, serial buffer full)
     forwarded: int = 0  # frames from other links written here
+    junk: int = 0  # datagrams from unknown sources that admitted nothing (dropped; udpin only)
     errors: Counter = field(default_factory=Counter)
     last_rx: float | None = None  # time.monotonic() of the last accepted frame
 
@@ -189,11 +198,28 @@ class Endpoint:
         out: list[tuple[mavlink.MAVLink_message, Peer | None]] = []
         for data, peer in chunks:
             self.stats.rx_bytes += len(data)
-            for msg in self._parse(data, isolated=peer is not None or self.kind != "serial"):
-                out.append((msg, peer))
+            if not self.is_peer(peer) and not could_hold_frame(data):
+                self.stats.junk += 1  # cheap: not even parsed
+                continue
+            messages = self._parse(data, isolated=peer is not None or self.kind != "serial")
+            if not self._admit(peer, messages):
+                self.stats.junk += 1
+            out.extend((msg, peer) for msg in messages)
         if out:
             self.stats.last_rx = time.monotonic()
         return out
+
+    def is_peer(self, peer: Peer | None) -> bool:
+        """Whether `peer` holds a routing slot (always, for the single-destination endpoints)."""
+        return True
+
+    def _admit(self, peer: Peer | None, messages: list[mavlink.MAVLink_message]) -> bool:
+        """Give `peer` a slot if `messages` (one datagram's accepted frames) authenticate it; True if it holds one."""
+        return True
+
+    def authenticated(self, msg: mavlink.MAVLink_message) -> bool:
+        """An accepted frame that may admit its sender: signed and verified when signing is on, else any."""
+        return self.mav.signing.secret_key is None or bool(msg.get_signed())
 
     def _parse(self, data: bytes, isolated: bool) -> list[mavlink.MAVLink_message]:
         mav = self.mav
@@ -232,6 +258,15 @@ class Endpoint:
             if reason.startswith(prefix):
                 return name
         return "malformed"
+
+
+MIN_FRAME_BYTES = 8  # the shortest MAVLink frame (v1, empty payload); v2 needs 12
+
+
+def could_hold_frame(data: bytes) -> bool:
+    """Whether a datagram can hold a MAVLink frame at all: long enough and starting with a v1 / v2
+    start byte (a sender that frames correctly starts every datagram with one)."""
+    return len(data) >= MIN_FRAME_BYTES and data[0] in (mavlink.PROTOCOL_MARKER_V1, mavlink.PROTOCOL_MARKER_V2)
 
 
 def _reset_parser(mav: mavlink.MAVLink) -> None:
@@ -275,12 +310,22 @@ class UdpInEndpoint(Endpoint):
                 break
             except ConnectionError:
                 continue  # ICMP error of an earlier send: not fatal for a listening socket
+            chunks.append((data, peer))
+        return chunks
+
+    def is_peer(self, peer: Peer | None) -> bool:
+        return peer in self._peers
+
+    def _admit(self, peer: Peer | None, messages: list[mavlink.MAVLink_message]) -> bool:
+        if peer is None:
+            return False
+        if any(self.authenticated(msg) for msg in messages):
             self._peers[peer] = time.monotonic()
             self._peers.move_to_end(peer)
             while len(self._peers) > MAX_PEERS:
                 self._peers.popitem(last=False)
-            chunks.append((data, peer))
-        return chunks
+            return True
+        return peer in self._peers
 
     def _write(self, data: bytes, peer: Peer | None) -> bool:
         if peer is None:
@@ -474,7 +519,8 @@ class Router:
     def _route(self, endpoint: Endpoint, peer: Peer | None, msg: mavlink.MAVLink_message) -> bool:
         """Learn, forward; True if the message is for local processing."""
         source: LinkKey = (endpoint.name, peer)
-        self.routes[(msg.get_srcSystem(), msg.get_srcComponent())] = source
+        if endpoint.is_peer(peer):  # never from a sender without a slot (an unsigned RADIO_STATUS)
+            self.routes[(msg.get_srcSystem(), msg.get_srcComponent())] = source
         system, component = _target(msg)
         raw = bytes(msg.get_msgbuf())
         if system == 0:

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from c4d_bridge_mavlink.signing import SigningConfig, SigningError, load_key, make_mavlink, mavlink, signing_timestamp
-from c4d_bridge_mavlink.transport import Router
+from c4d_bridge_mavlink.transport import MAX_PEERS, Router
 
 KEY = bytes(range(32))
 OTHER_KEY = bytes(range(1, 33))
@@ -63,6 +63,16 @@ class SignedGcs:
         self.sock.sendto(data, self.dest)
         return data
 
+    def received(self, quiet: float) -> list[str]:
+        """Types of the messages received until nothing came for `quiet` seconds."""
+        self.sock.settimeout(quiet)
+        types: list[str] = []
+        try:
+            while True:
+                types += [m.get_type() for m in self.mav.parse_buffer(self.sock.recv(1024)) or []]
+        except TimeoutError:
+            return types
+
     def close(self) -> None:
         self.sock.close()
 
@@ -102,14 +112,7 @@ def test_good_key_accepted_wrong_key_and_unsigned_rejected_and_counted() -> None
             errors = router.stats()[URL].errors
             assert dict(errors) == {"bad_signature": 2, "unsigned": 1}
             # what reached the good GCS so far: the other GCSs' accepted broadcasts, forwarded unchanged
-            good.sock.settimeout(0.2)
-            forwarded = []
-            try:
-                while True:
-                    forwarded += [m.get_type() for m in good.mav.parse_buffer(good.sock.recv(1024)) or []]
-            except TimeoutError:
-                pass
-            assert forwarded == ["RADIO_STATUS"]
+            assert good.received(0.2) == ["RADIO_STATUS"]
             # our replies are signed and verify with the shared key only
             assert router.send(mavlink.MAVLink_command_ack_message(400, 0, 0, 0, 255, 190)) == 1
             data = good.sock.recv(1024)
@@ -155,6 +158,32 @@ def test_forged_future_timestamp_cannot_block_the_stream() -> None:
     stock.signing.secret_key, stock.signing.timestamp = KEY, signing_timestamp()
     stock.signing.allow_unsigned_callback = lambda _mav, _id: False
     assert [m.get_type() for m in stock.parse_buffer(first + forged + later)] == ["COMMAND_LONG", "BAD_DATA", "BAD_DATA"]
+
+
+def test_only_signed_senders_take_a_peer_slot() -> None:
+    """Issue 14 item 13: with signing on, neither 1-byte junk nor valid unsigned frames from 2 x MAX_PEERS
+    addresses take a routing slot or evict the signed GCS; an unsigned RADIO_STATUS is processed but
+    neither admits its sender nor redirects the GCS's route; everything is counted as junk."""
+    with Router([URL], signing=SigningConfig(KEY)) as router:
+        good = SignedGcs(router, KEY)
+        junk = [SignedGcs(router, None, sysid=255) for _ in range(2 * MAX_PEERS)]
+        try:
+            good.send(heartbeat())
+            assert drain(router) == ["HEARTBEAT"]
+            for sender in junk:
+                sender.sock.sendto(b"\x00", sender.dest)
+                sender.send(heartbeat())
+            junk[0].send(radio_status())  # same sysid/compid as the good GCS
+            assert drain(router) == ["RADIO_STATUS"]
+            endpoint = router.endpoints[URL]
+            assert endpoint.peers() == [good.sock.getsockname()]
+            assert endpoint.stats.junk == 4 * MAX_PEERS + 1 and endpoint.stats.errors["unsigned"] == 2 * MAX_PEERS
+            assert router.routes[(255, 190)] == (URL, good.sock.getsockname())
+            assert router.send(mavlink.MAVLink_command_ack_message(400, 0, 0, 0, 255, 190)) == 1
+            assert good.received(0.3) == ["RADIO_STATUS", "COMMAND_ACK"]  # the forwarded broadcast, then our reply
+        finally:
+            for sender in (good, *junk):
+                sender.close()
 
 
 def test_signing_disabled_accepts_unsigned() -> None:

@@ -10,7 +10,7 @@ import pytest
 
 from c4d_bridge_mavlink.link_monitor import LinkMonitor
 from c4d_bridge_mavlink.signing import make_mavlink, mavlink
-from c4d_bridge_mavlink.transport import Router, parse_endpoint_url
+from c4d_bridge_mavlink.transport import MAX_PEERS, Router, could_hold_frame, parse_endpoint_url
 
 
 class Gcs:
@@ -225,16 +225,57 @@ def test_bad_input_is_counted_never_raised() -> None:
             bad_flags = bytearray(gcs.frame(heartbeat()))
             bad_flags[2] = 0x80
             bad_flags = _recrc(bad_flags, mavlink.MAVLink_heartbeat_message.crc_extra)
+            gcs.sock.sendto(good, gcs.dest)  # admitted first: then its bad input is parsed and counted by reason
+            assert len(poll_until(router, 1)) == 1
             for data in (bytes(bad_crc), bytes(unknown), bad_flags, b"\x01\x02garbage", good[:7], good[:-3], b"", good):
                 gcs.sock.sendto(data, gcs.dest)
             got = poll_until(router, 1)
             time.sleep(0.1)
             got += router.poll(0.1)
             assert [r.message.get_type() for r in got] == ["HEARTBEAT"]
-            errors = router.stats()[url].errors
-            assert dict(errors) == {"crc": 1, "unknown_id": 1, "incompat_flags": 1, "prefix": 1, "truncated": 2}
+            stats = router.stats()[url]
+            assert dict(stats.errors) == {"crc": 1, "unknown_id": 1, "incompat_flags": 1, "prefix": 1, "truncated": 2}
+            assert stats.junk == 0
         finally:
             gcs.close()
+
+
+def test_junk_senders_take_no_peer_slot_without_signing() -> None:
+    """Issue 14 item 13: 1-byte datagrams from many addresses used to fill the 16-slot peer table and
+    evict the GCS. Now a source needs one valid frame to take a slot; junk is dropped and counted."""
+    url = "udpin:127.0.0.1:0"
+    with Router([url]) as router:
+        dest = ("127.0.0.1", udpin_port(router, url))
+        gcs = Gcs(dest=dest)
+        junk = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2 * MAX_PEERS)]
+        try:
+            gcs.send(heartbeat())
+            assert len(poll_until(router, 1)) == 1
+            for sock in junk:
+                sock.sendto(b"\x00", dest)
+                sock.sendto(b"\xfd" + bytes(20), dest)  # a start byte, then nothing valid: parsed, still junk
+            deadline = time.monotonic() + 2.0
+            endpoint = router.endpoints[url]
+            while endpoint.stats.junk < 4 * MAX_PEERS and time.monotonic() < deadline:
+                router.poll(0.05)
+            assert endpoint.stats.junk == 4 * MAX_PEERS
+            assert endpoint.peers() == [("127.0.0.1", gcs.port)]
+            assert router.send(heartbeat(mavlink.MAV_TYPE_QUADROTOR)) == 1
+            assert [m.get_type() for m in gcs.recv()] == ["HEARTBEAT"]
+            # a source with a valid frame is a peer (unsigned links: today's behaviour)
+            junk[0].sendto(Gcs(sysid=7).frame(heartbeat()), dest)
+            poll_until(router, 1)
+            assert len(endpoint.peers()) == 2
+        finally:
+            gcs.close()
+            for sock in junk:
+                sock.close()
+
+
+def test_could_hold_frame() -> None:
+    frame = Gcs().frame(heartbeat())
+    assert could_hold_frame(frame) and could_hold_frame(frame[:8])
+    assert not could_hold_frame(b"\xfd") and not could_hold_frame(b"") and not could_hold_frame(b"\x00" + frame[1:])
 
 
 def test_link_monitor_from_real_heartbeats() -> None:
