@@ -135,6 +135,22 @@ def test_prepare_run_writes_ros_parameter_files(tmp_path):
     assert (payload.restart.mode, payload.critical, specs[0].critical) == ("always", False, True)
 
 
+def test_bridge_parameters_persist_per_run_not_per_user(tmp_path):
+    """Issue 14 item 15: one per-user parameter file let one GCS's SYSID_THISMAV change every later
+    vehicle of that account. Each run's bridge now has its own file in the run directory."""
+    from c4d_bridge_mavlink.bridge_node import PARAMETERS
+
+    assert PARAMETERS["param_file"].default == ""  # standalone: nothing shared, nothing persisted
+    files = []
+    for run in ("run_a", "run_b"):
+        specs = prepare_run(load_system_config(SITL), tmp_path / run)
+        bridge = next(s for s in specs if s.name == "bridge")
+        files.append(yaml.safe_load(Path(bridge.argv[3]).read_text())["/**"]["ros__parameters"]["param_file"])
+    assert files == [str(tmp_path / "run_a/bridge/params.yaml"), str(tmp_path / "run_b/bridge/params.yaml")]
+    container = ROOT / "docker" / "sitl.container.yaml"
+    assert load_system_config(container).node("bridge").parameters["param_file"] == "${run}/bridge/params.yaml"
+
+
 def test_launch_plan_is_the_same_graph_as_c4d_up(tmp_path):
     plan = launch_plan(str(SITL), str(tmp_path / "run"))
     specs = prepare_run(load_system_config(SITL), tmp_path / "run2")

@@ -87,8 +87,9 @@ PARAMETERS: dict[str, Spec] = {
                              read_only=True),
     "config": Spec("", "telemetry stream rates YAML; '' = the installed config/bridge.yaml [path]", read_only=True,
                    empty=default_config),
-    "param_file": Spec(str(Path.home() / ".local/share/c4d/bridge_params.yaml"),
-                       "YAML file the MAVLink parameters persist in; '' = not persisted [path]", read_only=True),
+    "param_file": Spec("", "YAML file the MAVLink parameters of this vehicle persist in; '' = not persisted. Per vehicle, "
+                           "never one shared per-user file: `c4d up` gives each run ${run}/bridge/params.yaml [path]",
+                       read_only=True),
     "signing_key_file": Spec("", "MAVLink 2 signing key file; '' = signing off [path]", read_only=True),
 }
 
@@ -139,6 +140,8 @@ class BridgeNode:
         self.params = ParamServer(self._send, settings.param_file, apply=self.ros.set_node_parameter)
         for problem in self.params.load_errors:
             node.get_logger().warning(problem)
+        node.get_logger().info(f"bridge: MAVLink parameters persist in {settings.param_file}" if settings.param_file
+                               else "bridge: MAVLink parameters are not persisted (param_file '')")
         self.sysid = settings.sysid or int(self.params.get("SYSID_THISMAV"))
         try:
             self.router = Router(list(settings.urls), sysid=self.sysid, signing=settings.signing)
