@@ -63,3 +63,26 @@ def test_c4d_fly_hop(processes, tmp_path):
     assert report.is_file() and report.stat().st_size > 1000 and str(report) in summary
     assert len(list((run / "report").glob("*.png"))) >= 5
     assert (run / "logs" / "core.log").stat().st_size > 0
+
+
+FAR = """name: far
+items:
+  - {type: takeoff, altitude: 10}
+  - {type: waypoint, east: 50000, north: 0, alt: 10}
+  - {type: land}
+"""
+
+
+def test_c4d_fly_refuses_a_plan_beyond_the_endurance_before_anything_starts(tmp_path):
+    """Issue 14.1: one waypoint 50 km away and no geofence: the endurance at full charge (the SITL
+    pack) refuses it offline — one `c4d: error:` line, exit 2, no run folder, no process started."""
+    import subprocess
+
+    (tmp_path / "far.yaml").write_text(FAR)
+    done = subprocess.run([installed_executable("c4d_bringup", "c4d"), "fly", "--mission", "far.yaml"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2, (done.stdout, done.stderr)
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("c4d: error: mission far.yaml: ") and "exceeds 80 %" in lines[0], lines
+    assert done.stdout == "" and list(tmp_path.iterdir()) == [tmp_path / "far.yaml"]  # no c4d_runs/: nothing started
+    assert leftover_processes(RUN_TOKEN) == []

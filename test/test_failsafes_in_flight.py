@@ -13,7 +13,7 @@ import signal
 import time
 
 import pytest
-from c4d_testing import call_service, installed_executable, spin_for
+from c4d_testing import call_service, installed_executable, spin_for, upload_plan
 
 NODES = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "navigation", []),
          ("c4d_gnc", "core", ["--ros-args", "-p", "rt_priority:=50"]), ("c4d_mission", "mission", []),
@@ -144,7 +144,7 @@ def test_failsafes_in_flight(graph):
 
     # --- geofence breach → RTL: a forced go-to 25 m out with a 15 m fence
     plan = plan_from_yaml_text(FENCED_PLAN)
-    reply = f.call(f.upload, UploadMission.Request(plan=plan_to_msg(plan)))
+    reply = upload_plan(f.spin, f.upload, UploadMission.Request(plan=plan_to_msg(plan)))
     assert reply.accepted, reply.errors
     f.spin(3.0)  # GNSS back: let the estimator converge before the pre-arm checks
     f.take_off()

@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 
 import pytest
-from c4d_testing import call_service, installed_executable, sample_latest, spin_for
+from c4d_testing import call_service, installed_executable, sample_latest, spin_for, upload_plan
 
 from c4d_common.geodesy import GeoOrigin
 
@@ -75,7 +75,7 @@ def test_survey_mission(graph):
     outside = plan_from_yaml_text((ROOT / "missions" / "survey.yaml").read_text().replace("east: 20, north: 20",
                                                                                           "east: 300, north: 20"))
     # bad plan, nothing loaded: rejected with the reason; start without a plan: refused
-    reply = call(clients["upload"], UploadMission.Request(plan=plan_to_msg(outside)))
+    reply = upload_plan(spin, clients["upload"], UploadMission.Request(plan=plan_to_msg(outside)))
     assert not reply.accepted and any(e.startswith("item 5: outside the geofence polygon") for e in reply.errors)
     assert not call(clients["download"], DownloadMission.Request()).has_plan
     reply = call(clients["control"], MissionControl.Request(action=MissionControl.Request.ACTION_START))

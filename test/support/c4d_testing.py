@@ -292,3 +292,16 @@ def call_service(spin, client, request, wait_s: float = 30.0, reply_s: float = 1
     future = client.call_async(request)
     assert spin(reply_s, future.done), f"no reply from {client.srv_name} in {reply_s} s"
     return future.result()
+
+
+def upload_plan(spin, client, request, retry_s: float = 15.0):
+    """mission/upload as a caller should: an upload refused with a retry kind (no home, battery
+    state unknown yet — UploadRefusal.retry) is sent again each second for up to `retry_s`."""
+    from c4d_common.vehicle import UploadRefusal
+
+    deadline = time.monotonic() + retry_s
+    while True:
+        reply = call_service(spin, client, request)
+        if reply.accepted or not UploadRefusal(reply.refusal).retry or time.monotonic() > deadline:
+            return reply
+        spin(1.0)

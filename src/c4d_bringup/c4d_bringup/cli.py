@@ -59,10 +59,13 @@ def fail(message: str) -> int:
 
 
 def load_mission(path: Path, config: SystemConfig):
-    """Parse the plan and validate it against the simulated home (SITL); (plan, estimated duration)."""
+    """Parse the plan and validate it offline, before anything starts, as the mission node will:
+    geometry, geofence and speeds against the simulated home, endurance against the simulated
+    pack at full charge (its capacity at the mission's `hover_current_a`, else the sim's hover
+    current). Returns (plan, estimated duration)."""
     from c4d_common.plan import PlanError
     from c4d_common.plan_files import load_plan
-    from c4d_common.plan_validation import validate
+    from c4d_common.plan_validation import IssueKind, flight_time_left, validate
 
     try:
         plan = load_plan(path)
@@ -75,13 +78,20 @@ def load_mission(path: Path, config: SystemConfig):
 
     sim_file = sim.parameters.get("config") or ""
     try:
-        origin = load_sim_config(Path(str(sim_file).replace("${config_dir}", str(config.path.parent)))
-                                 if sim_file else default_sim_config()).origin
+        sim_config = load_sim_config(Path(str(sim_file).replace("${config_dir}", str(config.path.parent)))
+                                     if sim_file else default_sim_config())
     except SimConfigError as exc:
         raise ConfigError(f"node 'sim': {exc}") from None
-    result = validate(plan, origin)
+    mission = config.node("mission")
+    hover = mission.parameters.get("hover_current_a", sim_config.hover_current_a) if mission else sim_config.hover_current_a
+    if isinstance(hover, bool) or not isinstance(hover, (int, float)) or not hover > 0:
+        raise ConfigError(f"node 'mission': parameter 'hover_current_a' must be a positive number of amperes, got {hover!r}")
+    endurance = flight_time_left(sim_config.sensors.battery_capacity_ah, float(hover))
+    result = validate(plan, sim_config.origin, endurance_s=endurance)
     if not result.ok:
-        raise ConfigError(f"mission {path}: " + "; ".join(result.errors))
+        battery = f" (full charge {sim_config.sensors.battery_capacity_ah:g} Ah at {float(hover):.1f} A hover, 20 % reserve)" \
+            if any(i.kind == IssueKind.ENDURANCE for i in result.issues) else ""
+        raise ConfigError(f"mission {path}: " + "; ".join(result.errors) + battery)
     return plan, result.duration
 
 

@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from c4d_common.vehicle import UploadRefusal
 from c4d_ros.manifest import MISSION_UPLOAD
 
 from .ros_link import key_values
@@ -190,7 +191,7 @@ def _fly(link, key_values, config, options, plan, up, summary, interrupted, say,
         reply = link.call(link.upload, UploadMission.Request(plan=plan_to_msg(plan)), watch=watch)
         if reply is None:
             raise FlightError(f"{MISSION_UPLOAD.name} did not answer (is the mission node running? see logs/mission.log)")
-        if reply.accepted or not any("no home" in e for e in reply.errors) or time.monotonic() > deadline:
+        if reply.accepted or not UploadRefusal(reply.refusal).retry or time.monotonic() > deadline:
             break
         link.spin(1.0, watch=watch)
     if not reply.accepted:

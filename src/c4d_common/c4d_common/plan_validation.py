@@ -62,6 +62,7 @@ class IssueKind(Enum):
     ENDS_IN_AIR = "ends in the air"  # warning
     NO_HOME = "no home position"  # acceptance: the estimator has no origin yet
     MISSION_ACTIVE = "a mission is active"  # acceptance: the running plan cannot be replaced
+    BATTERY_UNKNOWN = "battery state unknown"  # acceptance: no battery report yet, the endurance cannot be checked
 
     @property
     def malformed(self) -> bool:
@@ -103,8 +104,9 @@ class ValidationResult:
 
 def flight_time_left(charge_ah: float, hover_current_a: float, reserve: float = 0.2) -> float | None:
     """Flight time left [s] at hover current from the battery's remaining charge, keeping
-    `reserve` (a fraction) untouched; None when the charge is unknown."""
-    if not math.isfinite(charge_ah) or charge_ah <= 0 or hover_current_a <= 0:
+    `reserve` (a fraction) untouched; None when the charge is unknown (NaN, negative), 0 when empty.
+    With the pack's full capacity it is the endurance `c4d fly` checks offline, before anything starts."""
+    if not math.isfinite(charge_ah) or charge_ah < 0 or not math.isfinite(hover_current_a) or hover_current_a <= 0:
         return None
     return charge_ah * (1.0 - reserve) / hover_current_a * 3600.0
 
@@ -206,7 +208,7 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
                 fly_to(k, (target[0], target[1], position[2]))
             fly_to(k, (position[0], position[1], 0.0))
             airborne = False
-    if endurance_s is not None and endurance_s > 0:
+    if endurance_s is not None:  # None: not checked (the mission node refuses instead: BATTERY_UNKNOWN)
         if duration > 0.8 * endurance_s:
             error(IssueKind.ENDURANCE, None,
                   f"plan: estimated {duration:.0f} s of flight exceeds 80 % of the {endurance_s:.0f} s left")

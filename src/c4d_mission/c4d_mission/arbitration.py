@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.plan import GLOBAL, Geofence, Item, Plan
 from c4d_common.plan_validation import IssueKind, PlanIssue, ValidationResult, VehicleLimits, check_goto, validate
-from c4d_common.vehicle import Command, CommandResult, Landed, MissionAction, MissionStatus, VehicleCommandId
+from c4d_common.vehicle import Command, CommandResult, Landed, MissionAction, MissionStatus, UploadRefusal, VehicleCommandId
 
 from .executor import Checkpoint, MissionExecutor, Output, Vehicle
 
@@ -70,6 +70,18 @@ class Acceptance:
     warnings: tuple[PlanIssue, ...]
     validation: ValidationResult | None = None
 
+    @property
+    def refusal(self) -> UploadRefusal:
+        """Why the plan was refused, for callers to decide on (retry, fix the plan, wait): NONE when accepted."""
+        if self.plan is not None:
+            return UploadRefusal.NONE
+        kinds = {issue.kind for issue in self.errors}
+        return next((refusal for kind, refusal in _REFUSALS if kind in kinds), UploadRefusal.INVALID)
+
+
+_REFUSALS = ((IssueKind.NO_HOME, UploadRefusal.NO_HOME), (IssueKind.BATTERY_UNKNOWN, UploadRefusal.BATTERY_UNKNOWN),
+             (IssueKind.MISSION_ACTIVE, UploadRefusal.MISSION_ACTIVE))
+
 
 def _refused(kind: IssueKind, text: str) -> Acceptance:
     return Acceptance(None, (PlanIssue(kind, None, text),), ())
@@ -92,9 +104,14 @@ class CommandArbiter:
 
     # ------------------------------------------------------------------ plans
     def accept(self, plan: Plan, home: GeoOrigin | None, endurance_s: float | None) -> Acceptance:
-        """Validate `plan` and, if it passes and no mission is active, load it with a new id."""
+        """Validate `plan` and, if it passes and no mission is active, load it with a new id. Never
+        accepts a plan it could not fully validate: without a home position or an endurance (no
+        battery state yet) the plan is refused with a retry kind (NO_HOME, BATTERY_UNKNOWN)."""
         if home is None:
             return _refused(IssueKind.NO_HOME, "plan: no home position yet (estimator not ready)")
+        if endurance_s is None:
+            return _refused(IssueKind.BATTERY_UNKNOWN, "plan: battery state unknown yet (no battery report): "
+                                                       "endurance not checked, retry")
         result = validate(plan, home, self.limits, endurance_s)
         if not result.ok:
             return Acceptance(None, result.issues, result.notices, result)

@@ -38,7 +38,16 @@ from c4d_common.geofence import LocalFence
 from c4d_common.plan import Plan, PlanError
 from c4d_common.plan_files import load_plan
 from c4d_common.plan_validation import VehicleLimits, flight_time_left
-from c4d_common.vehicle import Command, CommandResult, FailsafeAction, Landed, MissionStatus, Mode, VehicleCommandId
+from c4d_common.vehicle import (
+    Command,
+    CommandResult,
+    FailsafeAction,
+    Landed,
+    MissionStatus,
+    Mode,
+    UploadRefusal,
+    VehicleCommandId,
+)
 from c4d_interfaces.msg import GuidanceSetpoint, MissionPlan, MissionState, VehicleState, VehicleStatus
 from c4d_interfaces.srv import DownloadMission, MissionControl, UploadMission, VehicleCommand
 from c4d_ros import manifest as m
@@ -48,7 +57,7 @@ from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.plan_msgs import plan_from_msg, plan_to_msg
 from c4d_ros.stamps import s_to_stamp
 
-from .arbitration import CommandArbiter, Decision, VehicleView, goto_target
+from .arbitration import Acceptance, CommandArbiter, Decision, VehicleView, goto_target
 from .executor import Checkpoint, MissionExecutor, Vehicle
 from .mission_journal import JournalEntry, JournalError, MissionJournal, VehicleCheck, resume_status
 from .prearm import PreArmChecks, PreArmInputs
@@ -144,12 +153,13 @@ class MissionNode:
 
     def _on_state(self, msg: Any) -> None:
         self.state = msg
-        if self.plan_file and self.arbiter.mission.plan is None and self._home() is not None and not self.plan_file_tried:
+        if self.plan_file and self.arbiter.mission.plan is None and self._home() is not None and not self.plan_file_tried \
+                and self._endurance() is not None:  # validated in full: home and battery state known
             self.plan_file_tried = True
             try:
-                errors, _ = self._accept(load_plan(self.plan_file))
-                if errors:
-                    self.node.get_logger().error(f"plan_file {self.plan_file} rejected: {'; '.join(errors)}")
+                verdict = self._accept(load_plan(self.plan_file))
+                if verdict.errors:
+                    self.node.get_logger().error(f"plan_file {self.plan_file} rejected: {'; '.join(map(str, verdict.errors))}")
             except PlanError as exc:
                 self.node.get_logger().error(f"plan_file: {exc}")
 
@@ -208,26 +218,34 @@ class MissionNode:
             self.journalled = checkpoint
 
     # ------------------------------------------------------------------ services
-    def _accept(self, plan: Plan) -> tuple[list[str], list[str]]:
-        """Offer `plan` to the arbiter; publish and log it when accepted. Returns (errors, warnings)."""
+    def _endurance(self) -> float | None:
+        """Flight time left [s] from the latest battery report (its charge, or percentage x capacity);
+        None while no report has come (the arbiter then refuses plans: BATTERY_UNKNOWN)."""
         b = self.battery
-        endurance = flight_time_left(b.charge, self.hover_current_a) if b is not None else None
-        verdict = self.arbiter.accept(plan, self._home(), endurance)
+        if b is None:
+            return None
+        charge = b.charge if math.isfinite(b.charge) else b.percentage * b.capacity
+        return flight_time_left(charge, self.hover_current_a)
+
+    def _accept(self, plan: Plan) -> Acceptance:
+        """Offer `plan` to the arbiter; publish and log it when accepted."""
+        verdict = self.arbiter.accept(plan, self._home(), self._endurance())
         if verdict.plan is not None and verdict.validation is not None:
             self.pub_plan.publish(plan_to_msg(verdict.plan))
             self.node.get_logger().info(
                 f"plan {verdict.plan.plan_id} '{verdict.plan.name}' accepted: {len(verdict.plan.items)} items, "
                 f"{verdict.validation.path_length:.0f} m, ~{verdict.validation.duration:.0f} s")
-        return [str(e) for e in verdict.errors], [str(w) for w in verdict.warnings]
+        return verdict
 
     def _on_upload(self, request: Any, response: Any) -> Any:
         try:
             plan = plan_from_msg(request.plan)
         except PlanError as exc:
-            response.accepted, response.errors = False, [str(exc)]
+            response.accepted, response.refusal, response.errors = False, int(UploadRefusal.INVALID), [str(exc)]
             return response
-        response.errors, response.warnings = self._accept(plan)
-        response.accepted = not response.errors
+        verdict = self._accept(plan)
+        response.errors, response.warnings = [str(e) for e in verdict.errors], [str(w) for w in verdict.warnings]
+        response.accepted, response.refusal = verdict.plan is not None, int(verdict.refusal)
         mission = self.arbiter.mission
         response.plan_id = mission.plan.plan_id if response.accepted and mission.plan else 0
         if response.accepted and request.start:

@@ -19,7 +19,7 @@ GROUNDED = VehicleView(HOME, False, Landed.ON_GROUND, (0.0, 0.0, 0.0))
 
 def survey_arbiter() -> CommandArbiter:
     arbiter = CommandArbiter()
-    verdict = arbiter.accept(load_plan(ROOT / "missions" / "survey.yaml"), HOME, None)
+    verdict = arbiter.accept(load_plan(ROOT / "missions" / "survey.yaml"), HOME, 3600.0)
     assert verdict.plan is not None and verdict.plan.plan_id == 1 and not verdict.errors
     return arbiter
 
@@ -33,11 +33,32 @@ def test_plan_acceptance_needs_home_and_no_active_mission():
     arbiter = CommandArbiter()
     plan = load_plan(ROOT / "missions" / "survey.yaml")
     assert [i.kind for i in arbiter.accept(plan, None, None).errors] == [IssueKind.NO_HOME]
-    assert arbiter.accept(plan, HOME, None).plan.plan_id == 1
+    assert arbiter.accept(plan, HOME, 3600.0).plan.plan_id == 1
     assert arbiter.control(MissionAction.START).result == CommandResult.ACCEPTED
-    refused = arbiter.accept(plan, HOME, None)
+    refused = arbiter.accept(plan, HOME, 3600.0)
     assert refused.plan is None and [str(e) for e in refused.errors] == ["plan: a mission is active (pause or land first)"]
     assert refused.errors[0].kind == IssueKind.MISSION_ACTIVE
+
+
+def test_a_plan_is_never_accepted_unvalidated_battery_unknown_is_a_typed_retry():
+    """Issue 14.1: without a battery report the endurance was skipped and a 50 km plan flew."""
+    from c4d_common.plan import plan_from_yaml_text
+    from c4d_common.plan_validation import flight_time_left
+    from c4d_common.vehicle import UploadRefusal
+
+    far = plan_from_yaml_text("name: far\nitems:\n  - {type: takeoff, altitude: 10}\n"
+                              "  - {type: waypoint, east: 50000, north: 0, alt: 10}\n  - {type: land}\n")
+    arbiter = CommandArbiter()
+    unknown = arbiter.accept(far, HOME, None)
+    assert unknown.plan is None and [i.kind for i in unknown.errors] == [IssueKind.BATTERY_UNKNOWN]
+    assert unknown.refusal == UploadRefusal.BATTERY_UNKNOWN and unknown.refusal.retry
+    assert arbiter.accept(far, None, None).refusal == UploadRefusal.NO_HOME
+    full = arbiter.accept(far, HOME, flight_time_left(5.0, 20.0))  # the SITL pack at full charge: 720 s
+    assert full.plan is None and IssueKind.ENDURANCE in {i.kind for i in full.errors}
+    assert full.refusal == UploadRefusal.INVALID and not full.refusal.retry
+    assert arbiter.accept(load_plan(ROOT / "missions" / "hop.yaml"), HOME, 0.0).refusal == UploadRefusal.INVALID  # empty
+    accepted = arbiter.accept(load_plan(ROOT / "missions" / "hop.yaml"), HOME, flight_time_left(5.0, 20.0))
+    assert accepted.refusal == UploadRefusal.NONE and arbiter.mission.status == MissionStatus.READY
 
 
 def test_mission_control_results_and_the_hold_on_pause():
@@ -120,7 +141,7 @@ def test_a_plan_ending_in_the_air_holds_then_an_rtl_at_once_still_asks_to_follow
     (as RETURN_TO_LAUNCH, so that the status reports RTL: issue 14.11)."""
     arbiter = CommandArbiter()
     plan = Plan((Item("takeoff", z=5.0), Item("waypoint", x=0.0, y=0.0, z=5.0)))
-    assert arbiter.accept(plan, HOME, None).plan is not None
+    assert arbiter.accept(plan, HOME, 3600.0).plan is not None
     arbiter.control(MissionAction.START)
     stale = Vehicle((0.0, 0.0, 5.0), True, True, int(Nav.GOTO))
     t = 0.0
@@ -177,7 +198,7 @@ def test_set_current_flies_to_the_new_item_at_once():
     arbiter = CommandArbiter()
     plan = Plan((Item("takeoff", z=5.0), Item("waypoint", x=20.0, y=0.0, z=5.0), Item("waypoint", x=0.0, y=15.0, z=5.0),
                  Item("rtl")), rtl_altitude=8.0)
-    assert arbiter.accept(plan, HOME, None).plan is not None
+    assert arbiter.accept(plan, HOME, 3600.0).plan is not None
     arbiter.control(MissionAction.START, 1)
     v = Vehicle((8.0, 0.0, 5.0), True, True, int(Nav.GOTO))
     for k in range(50):

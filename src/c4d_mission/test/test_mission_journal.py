@@ -117,7 +117,7 @@ def test_a_restarted_executor_continues_where_the_killed_one_was(tmp_path):
                  Item("waypoint", x=20.0, y=20.0, z=10.0)), name="square")
     journal = MissionJournal(tmp_path / "state.json")
     arbiter = CommandArbiter()
-    assert arbiter.accept(plan, HOME, None).plan is not None
+    assert arbiter.accept(plan, HOME, 3600.0).plan is not None
     arbiter.control(MissionAction.START)
     position, nav, t = (0.0, 0.0, 0.0), Nav.NONE, 0.0
     saved = None
@@ -152,7 +152,7 @@ def test_a_restarted_executor_continues_where_the_killed_one_was(tmp_path):
         step(fresh)
     assert fresh.mission.status == MissionStatus.COMPLETED and math.dist(position, (20.0, 20.0, 10.0)) < 1.0
     assert journal.load().checkpoint.status == MissionStatus.COMPLETED
-    new_plan = fresh.accept(plan, HOME, None).plan
+    new_plan = fresh.accept(plan, HOME, 3600.0).plan
     assert new_plan.plan_id == 2  # ids continue after the restored plan's
 
 

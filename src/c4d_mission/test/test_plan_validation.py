@@ -158,4 +158,4 @@ def test_flight_time_left_keeps_the_reserve():
     from c4d_common.plan_validation import flight_time_left
 
     assert flight_time_left(5.0, 20.0) == 5.0 * 0.8 / 20.0 * 3600.0
-    assert flight_time_left(float("nan"), 20.0) is None and flight_time_left(0.0, 20.0) is None
+    assert flight_time_left(float("nan"), 20.0) is None and flight_time_left(0.0, 20.0) == 0.0

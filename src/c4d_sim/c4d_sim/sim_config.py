@@ -11,7 +11,7 @@ from pathlib import Path
 
 import yaml
 
-from c4d_common.airframe import Airframe, AirframeError, default_airframe_path, load_airframe
+from c4d_common.airframe import GRAVITY, Airframe, AirframeError, default_airframe_path, load_airframe
 from c4d_common.config_file import yaml_error_text
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.share import share_file
@@ -37,6 +37,12 @@ class SimConfig:
     wind_mean: tuple[float, float, float]  # [m/s] ENU
     gust: float  # [m/s] amplitude of the (1 - cos) gust from the east
     gust_period: float  # [s]
+
+    @property
+    def hover_current_a(self) -> float:
+        """[A] the simulated pack's current at hover (the battery model of sensors.py: avionics plus
+        motor current per newton of the airframe's weight); `c4d fly` checks endurance with it."""
+        return self.sensors.avionics_amps + self.sensors.amps_per_newton * self.airframe.mass * GRAVITY
 
 
 def default_sim_config() -> Path:
