@@ -115,6 +115,7 @@ class MissionExecutor:
         self.last_error = ""
         self._now = 0.0
         self._retry_at = -math.inf
+        self._armed = False  # as last seen: a disarm outside the plan's own landing aborts the mission
 
     # ------------------------------------------------------------------ control
     def load(self, plan: Plan, home: GeoOrigin) -> None:
@@ -203,6 +204,10 @@ class MissionExecutor:
     def step(self, now: float, dt: float, v: Vehicle) -> Output:
         out = Output()
         self._now = now
+        disarmed, self._armed = self._armed and not v.armed, v.armed
+        if disarmed and self.status in (MissionStatus.ACTIVE, MissionStatus.PAUSED) and self._phase != "landing":
+            self.abort()  # not the plan's own landing: a failsafe or a pilot ended the flight (issue 14.3)
+            self.last_error = "vehicle disarmed outside the plan"
         if self.status != MissionStatus.ACTIVE or self.plan is None or self.home is None or now < self._retry_at:
             return out
         out = self._step_item(now, dt, v, out)

@@ -211,3 +211,26 @@ def test_set_current_flies_to_the_new_item_at_once():
     assert arbiter.control(MissionAction.SET_CURRENT, 3).result == CommandResult.ACCEPTED
     (_, out), _ = arbiter.step(1.02, 0.02, v)
     assert (Command.LAND, 0.0) not in out.requests and out.setpoint[1][2] > 0  # the RTL climbs, it does not land here
+
+
+def test_a_disarm_outside_the_plan_ends_the_mission_its_own_landing_completes_it():
+    """Issue 14.3: after a failsafe landing commanded straight to the core and the disarm, the
+    mission stayed ACTIVE for ever; a disarm that is not the plan's own landing aborts it."""
+    arbiter = survey_arbiter()
+    assert arbiter.control(MissionAction.START).result == CommandResult.ACCEPTED
+    arbiter.mission.current = 3  # a waypoint leg
+    flying = Vehicle((0.0, 0.0, 8.0), True, True, int(Nav.GOTO))
+    arbiter.step(0.0, 0.02, flying)
+    landed_by_core = Vehicle((0.0, 0.0, 0.0), True, False, int(Nav.LAND))
+    arbiter.step(0.02, 0.02, landed_by_core)
+    assert arbiter.mission.status == MissionStatus.ACTIVE  # armed on the ground: not over yet
+    arbiter.step(0.04, 0.02, Vehicle((0.0, 0.0, 0.0), False, False, int(Nav.NONE)))
+    assert arbiter.mission.status == MissionStatus.ABORTED and arbiter.mission.last_error == "vehicle disarmed outside the plan"
+    # the plan's own landing: the disarm completes the land item, then the plan
+    hop = CommandArbiter()
+    assert hop.accept(load_plan(ROOT / "missions" / "hop.yaml"), HOME, 3600.0).plan is not None
+    hop.control(MissionAction.START, 2)  # the land item
+    out = hop.step(0.0, 0.02, Vehicle((0.0, 8.0, 4.0), True, True, int(Nav.GOTO)))
+    assert (Command.LAND, 0.0) in out[0][1].requests
+    hop.step(0.02, 0.02, Vehicle((0.0, 8.0, 0.0), False, False, int(Nav.NONE)))
+    assert hop.mission.status == MissionStatus.COMPLETED
