@@ -2,7 +2,11 @@
 the bridge: parameters (full download, set, out-of-bounds rejection, persistence), a 100-item
 mission upload/download round trip, a rejected plan, commands in the wrong state, message
 intervals, then arm → take-off → mission → hover, pilot override (STABILIZED + MANUAL_CONTROL), and
-a ground-link loss → RTL → land, with the acks and the mode reports a GCS sees."""
+a ground-link loss → RTL → land, with the acks and the mode reports a GCS sees. The mission flown is
+a QGC WPL 110 file with its home row and no take-off, uploaded as MAVProxy's `wp load` does; in it
+a refused DISARM changes nothing and MISSION_SET_CURRENT flies to the new item (issue 14 items
+8-10, checked on the simulator's ground truth); after the landing it is started again on the
+ground and takes off by itself."""
 
 from __future__ import annotations
 
@@ -15,11 +19,12 @@ import time
 
 import pytest
 import yaml
-from c4d_testing import installed_executable
+from c4d_testing import installed_executable, sample_latest
 
 from c4d_common.geodesy import GeoOrigin
 
 M = None  # the pymavlink dialect, imported in the fixture (MAVLink 2)
+SIM_HOME = GeoOrigin(43.5629, 1.4815, 146.0)  # c4d_sim's start: the ground truth's ENU origin
 
 
 def free_udp_port() -> int:
@@ -119,7 +124,7 @@ class Gcs:
 
 
 @pytest.fixture(scope="module")
-def graph(module_processes, tmp_path_factory):
+def graph(module_processes, tmp_path_factory, ros_node):
     global M
     from c4d_bridge_mavlink.signing import mavlink
 
@@ -134,6 +139,9 @@ def graph(module_processes, tmp_path_factory):
     procs = {name: module_processes.spawn(name, [installed_executable(pkg, name), *args]) for pkg, name, args in nodes}
     gcs = Gcs(port)
     gcs.procs, gcs.group = procs, module_processes
+    from nav_msgs.msg import Odometry
+
+    gcs.truth = sample_latest(ros_node[0], Odometry, "sim/ground_truth")
     yield gcs, procs, module_processes, params_file
     gcs.close()
 
@@ -151,6 +159,32 @@ def upload(gcs: Gcs, items: list[tuple[int, int, list[float]]], mission_type: in
         gcs.conn.mav.mission_item_int_send(1, 1, msg.seq, frame, command, 0, 1, *p[:4], x, y, p[6], mission_type)
 
 
+def upload_wpl_like_mavproxy(gcs: Gcs, path) -> int:
+    """MAVProxy's `wp load`: pymavlink's MAVWPLoader reads the QGC WPL file, every row (home row 0
+    included) goes out as MISSION_ITEM_INT as requested; returns the MISSION_ACK type."""
+    from pymavlink import mavwp
+
+    loader = mavwp.MAVWPLoader(target_system=1, target_component=1)
+    loader.load(str(path))
+    gcs.conn.mav.mission_count_send(1, 1, loader.count(), 0)
+    while True:
+        msg = gcs.recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], 10.0)
+        assert msg is not None, "no MISSION_REQUEST/ACK from the vehicle"
+        if msg.get_type() == "MISSION_ACK":
+            return msg.type
+        w = loader.wp(msg.seq)
+        located = w.command in (M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_TAKEOFF, M.MAV_CMD_NAV_LAND)
+        x, y = (int(w.x * 1e7), int(w.y * 1e7)) if located else (int(w.x), int(w.y))
+        gcs.conn.mav.mission_item_int_send(1, 1, w.seq, w.frame, w.command, w.current, w.autocontinue, w.param1, w.param2,
+                                           w.param3, w.param4, x, y, w.z, 0)
+
+
+def truth_enu(gcs: Gcs, home: GeoOrigin) -> tuple[float, float, float]:
+    """The simulator's ground truth, in the mission frame (ENU from the estimator's home)."""
+    p = gcs.truth.latest().pose.pose.position
+    return home.to_enu(*SIM_HOME.to_geodetic(p.x, p.y, p.z))
+
+
 def download(gcs: Gcs) -> list:
     gcs.conn.mav.mission_request_list_send(1, 1, 0)
     count = gcs.recv("MISSION_COUNT", 10.0)
@@ -165,7 +199,7 @@ def download(gcs: Gcs) -> list:
     return items
 
 
-def test_scripted_gcs_session(graph):
+def test_scripted_gcs_session(graph, tmp_path):
     gcs, procs, group, params_file = graph
     report = []
     hb = gcs.recv("HEARTBEAT", 30.0, lambda m: m.get_srcSystem() == 1)
@@ -238,9 +272,16 @@ def test_scripted_gcs_session(graph):
     text = gcs.recv("STATUSTEXT", 5.0, lambda m: "geofence" in m.text)
     assert text is not None and text.text.startswith("item 2")  # 1-based, as QGroundControl lists them
     assert len(download(gcs)) == 100
-    # the plan flown: take-off is commanded, then three waypoints, hover at the end
-    short = [takeoff, wp(6.0, 0.0, 5.0), wp(6.0, 6.0, 5.0), wp(0.0, 6.0, 5.0)]
-    assert upload(gcs, short) == M.MAV_MISSION_ACCEPTED
+    # the plan flown: a QGC WPL 110 file as MAVProxy saves it — row 0 is home (absolute altitude),
+    # no take-off item — loaded as MAVProxy's `wp load` sends it (issue 14: MISSION_ACK INVALID)
+    rows = [(6.0, 0.0), (6.0, 6.0), (0.0, 12.0), (0.0, 6.0)]  # GCS items 1..4, 5 m above home
+    wpl = tmp_path / "square.waypoints"
+    home_row = f"0\t1\t0\t16\t0\t0\t0\t0\t{home.latitude:.8f}\t{home.longitude:.8f}\t{home.altitude:.2f}\t1\n"
+    wpl.write_text("QGC WPL 110\n" + home_row
+                   + "".join(f"{k}\t0\t3\t16\t0\t1\t0\t0\t{lat:.8f}\t{lon:.8f}\t5.0\t1\n"
+                             for k, (lat, lon, _) in enumerate((home.to_geodetic(e, n, 0.0) for e, n in rows), start=1)))
+    assert upload_wpl_like_mavproxy(gcs, wpl) == M.MAV_MISSION_ACCEPTED, gcs.story()
+    assert len(download(gcs)) == 5  # downloaded as uploaded: the home row first
 
     # --- arm, take off, fly the mission; modes as a GCS decodes them
     for _ in range(20):
@@ -252,7 +293,7 @@ def test_scripted_gcs_session(graph):
     assert gcs.recv("HEARTBEAT", 30.0, lambda m: m.get_srcSystem() == 1 and m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
                     and gcs.mode_of(m) == "AUTO.LOITER") is not None, gcs.story()
     assert gcs.recv("EXTENDED_SYS_STATE", 5.0, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR) is not None, gcs.story()
-    assert gcs.command(M.MAV_CMD_MISSION_START, 1, 3).result == M.MAV_RESULT_ACCEPTED, gcs.story()
+    assert gcs.command(M.MAV_CMD_MISSION_START, 1, 4).result == M.MAV_RESULT_ACCEPTED, gcs.story()
     assert gcs.recv("HEARTBEAT", 10.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.MISSION") is not None, \
         gcs.story()
     reached = set()
@@ -273,11 +314,30 @@ def test_scripted_gcs_session(graph):
     assert not any(m.get_type() == "MISSION_ITEM_REACHED" and m.seq == 2 for m in gcs.events), gcs.story()
     gcs.set_mode(4, 4, "AUTO.MISSION", within=10.0)
     report.append(f"paused after item 1 (drift {drift:.2f} m in 1 s), resumed")
-    fly_until(3)  # continued where it stopped, to the end
-    position = gcs.recv("GLOBAL_POSITION_INT", 5.0)
-    east, north, _ = home.to_enu(position.lat / 1e7, position.lon / 1e7, home.altitude)
-    assert math.hypot(east - 0.0, north - 6.0) < 1.5 and position.relative_alt == pytest.approx(5000, abs=600), \
-        (east, north, position.relative_alt, gcs.story())
+
+    # --- a plain DISARM in flight is refused, and a refused command changes nothing (issue 14: the
+    # mission was aborted and the vehicle flew back to where its leg started)
+    before = truth_enu(gcs, home)
+    ack = gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 0)
+    assert ack is not None and ack.result == M.MAV_RESULT_DENIED, gcs.story()
+    state = gcs.recv("MISSION_CURRENT", 3.0, lambda m: m.seq == 2)
+    assert state is not None and state.mission_state == M.MISSION_STATE_ACTIVE, (state, gcs.story())
+    fly_until(2)
+    reached_at = truth_enu(gcs, home)
+    assert math.dist(reached_at[:2], rows[1]) < 1.5 and reached_at[1] > before[1], (before, reached_at, gcs.story())
+    report.append(f"DISARM in flight DENIED; the leg went on ({before[1]:.1f} → {reached_at[1]:.1f} m north)")
+
+    # --- MISSION_SET_CURRENT mid-leg (towards item 3 at (0, 12)): the vehicle goes to item 4 at (0, 6)
+    gcs.during("LOCAL_POSITION_NED", 1.0)  # on the way to item 3
+    t0 = time.monotonic()
+    gcs.conn.mav.mission_set_current_send(1, 1, 4)
+    assert gcs.recv("MISSION_CURRENT", 3.0, lambda m: m.seq == 4) is not None, gcs.story()
+    fly_until(4)
+    at = truth_enu(gcs, home)
+    assert 3 not in reached and math.dist(at[:2], rows[3]) < 1.5 and at[2] == pytest.approx(5.0, abs=0.6), \
+        (sorted(reached), at, gcs.story())
+    report.append(f"MISSION_SET_CURRENT 4 mid-leg → item 4 reached in {time.monotonic() - t0:.1f} s "
+                  f"(ground truth {math.dist(at[:2], rows[3]):.2f} m from it)")
 
     # --- pilot override: STABILIZED, MANUAL_CONTROL roll stick 30 % → ~9° roll, then back to hold
     gcs.set_mode(7, 0, "STABILIZED", within=5.0)
@@ -308,4 +368,19 @@ def test_scripted_gcs_session(graph):
     assert landed is not None, "did not land and disarm after RTL"
     modes = [gcs.mode_of(m) for _, m in gcs.seen if m.get_type() == "HEARTBEAT" and m.get_srcSystem() == 1]
     assert "AUTO.LAND" in modes, gcs.story()
+
+    # --- the plan without a take-off item started on the ground: it takes off to item 1's altitude
+    # and flies it (issue 14 item 10, PX4 semantics)
+    gcs.events.clear()
+    for _ in range(10):
+        ack = gcs.command(M.MAV_CMD_MISSION_START, 1, 1)
+        if ack.result == M.MAV_RESULT_ACCEPTED:
+            break
+        time.sleep(1.0)
+    assert ack.result == M.MAV_RESULT_ACCEPTED, gcs.story()
+    reached.clear()
+    fly_until(1)
+    at = truth_enu(gcs, home)
+    assert math.dist(at[:2], rows[0]) < 1.5 and at[2] == pytest.approx(5.0, abs=0.6), (at, gcs.story())
+    report.append(f"started on the ground: took off and reached item 1 ({at[0]:.1f}, {at[1]:.1f}, {at[2]:.1f}) m")
     print("\n" + "\n".join(report))
