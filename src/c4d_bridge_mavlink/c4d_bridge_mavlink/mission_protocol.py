@@ -200,8 +200,8 @@ class MissionServer:
         self.transfer = None
         if result == M.MAV_MISSION_ACCEPTED:
             self.stored[t.mission_type] = t.items[1:] if t.home_row is not None else list(t.items)
-            if t.mission_type == MISSION:
-                self.home_row, self.home_plan_id = t.home_row, plan_id
+            if t.mission_type == MISSION:  # the accepted plan is the active one from now on
+                self.home_row, self.home_plan_id, self.active_plan_id = t.home_row, plan_id, plan_id
             self.stats["uploads"] += 1
         else:
             self.stats["rejected"] += 1
