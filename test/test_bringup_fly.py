@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 import yaml
-from c4d_testing import RUN_TOKEN, installed_executable, leftover_processes
+from c4d_testing import RUN_TOKEN, call_service, installed_executable, leftover_processes, spin_for
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -86,3 +86,47 @@ def test_c4d_fly_refuses_a_plan_beyond_the_endurance_before_anything_starts(tmp_
     assert len(lines) == 1 and lines[0].startswith("c4d: error: mission far.yaml: ") and "exceeds 80 %" in lines[0], lines
     assert done.stdout == "" and list(tmp_path.iterdir()) == [tmp_path / "far.yaml"]  # no c4d_runs/: nothing started
     assert leftover_processes(RUN_TOKEN) == []
+
+
+def test_c4d_fly_ends_the_run_when_a_failsafe_lands_the_vehicle(processes, ros_node, tmp_path):
+    """Issue 14.3: a failsafe landing commanded straight to the core (the mission node is stopped,
+    so health bypasses it) left the mission ACTIVE and `fly` printing `disarmed AUTO/-` until its
+    timeout (3 x estimate + 60 s). Once the vehicle is disarmed the run ends, naming the failsafe."""
+    import functools
+    import os
+    import signal
+
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    node, executor = ros_node
+    sim_params = node.create_client(SetParameters, "sim/set_parameters")
+    doc = yaml.safe_load((ROOT / "src" / "c4d_bringup" / "config" / "sitl.yaml").read_text())
+    doc["nodes"]["bridge"]["parameters"]["endpoints"] = ["udpin:127.0.0.1:0"]
+    (tmp_path / "system.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    run = tmp_path / "run"
+    fly = processes.spawn("fly", [installed_executable("c4d_bringup", "c4d"), "fly", "--mission",
+                                  str(ROOT / "missions" / "survey.yaml"), "--config", str(tmp_path / "system.yaml"),
+                                  "--run-dir", str(run), "--no-report"])
+
+    def wait_log(text: str, seconds: float) -> bool:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end and fly.poll() is None:
+            if text in processes.log_of(fly):
+                return True
+            time.sleep(0.2)
+        return text in processes.log_of(fly)
+
+    assert wait_log("ACTIVE    item  3/", 90), processes.log_of(fly)[-2000:]  # in the air, on the first leg
+    mission = json.loads((run / "supervisor.json").read_text())["nodes"]["mission"]["pid"]
+    os.kill(mission, signal.SIGSTOP)  # the mission node cannot hear the landing nor report it
+    try:
+        drain = Parameter("fault.battery_drain_factor", value=3000.0).to_parameter_msg()
+        reply = call_service(functools.partial(spin_for, executor), sim_params, SetParameters.Request(parameters=[drain]))
+        assert reply.results[0].successful, reply.results[0].reason
+        assert wait_log("stopping the graph", 60), processes.log_of(fly)[-2000:]
+    finally:
+        os.kill(mission, signal.SIGCONT)
+    assert fly.wait(timeout=60) == 1
+    summary = (run / "summary.txt").read_text()
+    assert "flight     not completed: disarmed at item" in summary and "failsafe LAND battery_critical" in summary, summary

@@ -6,6 +6,8 @@ recorder, uploads the plan, starts it (the mission arms and takes off when its f
 take-off, otherwise a take-off command comes first), prints progress while flying, and after
 landing and disarm stops the graph, runs `analyze` on the flight's MCAP and prints the summary
 (duration, distance, tracking error, overruns, failsafes, file paths; also in summary.txt).
+A vehicle disarmed without completing the plan (failsafe landing, pilot) ends the run at once,
+naming the failsafe; fly's own --timeout LAND is reported as fly's, not as the last warning.
 Exit 0 only if the plan was completed, the vehicle landed and disarmed, the graph stopped
 cleanly and (when configured) the recording and report exist.
 """
@@ -28,6 +30,8 @@ from .ros_link import key_values
 from .summary import FLIGHT_MODES, NAV_STATES, FlightSummary, progress_line
 from .supervisor import _pdeathsig, signal_group
 from .system_config import SystemConfig, node_parameters, resolve_executable, variables_for
+
+DISARM_GRACE_S = 3.0  # a disarmed vehicle with the mission still ACTIVE: end the run after this long
 
 
 class FlightError(RuntimeError):
@@ -211,6 +215,7 @@ def _fly(link, key_values, config, options, plan, up, summary, interrupted, say,
     say("mission started")
     flight_start, last_print, last_item = time.monotonic(), 0.0, None
     timed_out = aborted = False
+    disarmed_since: float | None = None
     while True:
         link.spin(0.2, watch=watch)
         m, s = link.latest.get("mission"), _status(link)
@@ -218,12 +223,18 @@ def _fly(link, key_values, config, options, plan, up, summary, interrupted, say,
             break
         if m is not None and m.state == MissionState.STATE_ABORTED and not aborted:
             aborted = True
-            say(f"mission aborted ({_failsafe_text(link, key_values)}); waiting for the vehicle to land")
-        if aborted and s is not None and not s.armed:
-            break
+            say(f"mission aborted ({_abort_cause(link, summary, timed_out, options.timeout_s)}); waiting for the vehicle to land")
+        # the flight is over once the vehicle that flew is disarmed and not completing the plan: a
+        # still-ACTIVE mission gets DISARM_GRACE_S to report the end of its own landing first
+        if summary.armed_at is not None and s is not None and not s.armed:
+            disarmed_since = disarmed_since or time.monotonic()
+            if m is None or m.state != MissionState.STATE_ACTIVE or time.monotonic() - disarmed_since > DISARM_GRACE_S:
+                break
+        else:
+            disarmed_since = None
         if time.monotonic() - flight_start > options.timeout_s and not timed_out:
             timed_out = True
-            say(f"mission not finished after {options.timeout_s:.0f} s: landing")
+            say(f"mission not finished after {options.timeout_s:.0f} s (--timeout): c4d fly commands LAND")
             link.call(link.vehicle, VehicleCommand.Request(command=VehicleCommand.Request.CMD_LAND), watch=watch)
         if timed_out and time.monotonic() - flight_start > options.timeout_s + 90:
             raise FlightError("the vehicle did not land within 90 s of the land command")
@@ -235,11 +246,22 @@ def _fly(link, key_values, config, options, plan, up, summary, interrupted, say,
     if config.node("recorder") is not None:
         link.spin(15, lambda: key_values(link.latest.get("recorder")).get("state") == "idle" and
                   int(key_values(link.latest.get("recorder")).get("files", "0")) >= 1, watch)
+    m = link.latest.get("mission")
+    if m is not None and m.state == MissionState.STATE_COMPLETED:
+        return "completed"
     if timed_out:
-        return f"timed out after {options.timeout_s:.0f} s (landed)"
-    if aborted:
-        return f"aborted ({_failsafe_text(link, key_values)}); landed"
-    return "completed"
+        return f"timed out after {options.timeout_s:.0f} s (c4d fly commanded LAND; landed)"
+    where = f" at item {m.current_item + 1}/{m.total_items}" if m is not None and m.total_items else ""
+    return f"not completed: disarmed{where} ({_abort_cause(link, summary, timed_out, options.timeout_s)})"
+
+
+def _abort_cause(link, summary: FlightSummary, timed_out: bool, timeout_s: float) -> str:
+    """Why the plan stopped: fly's own timeout, else the failsafe health acted on during the flight
+    (the latest health report no longer shows it once the vehicle is disarmed), else the latest report."""
+    if timed_out:
+        return f"c4d fly's --timeout of {timeout_s:.0f} s: LAND commanded by c4d fly"
+    acting = summary.acting_failsafes()
+    return acting if acting else _failsafe_text(link, key_values)
 
 
 def _status(link):

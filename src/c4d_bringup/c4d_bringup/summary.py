@@ -88,6 +88,11 @@ class FlightSummary:
         entry = self.failsafes.setdefault(key, [reason, 0])
         entry[1] += 1
 
+    def acting_failsafes(self) -> str:
+        """The failsafes that acted (hold, RTL, land, terminate: not warnings), for people; "" if none."""
+        text = self._failsafe_text(False)
+        return "" if text == "none" else f"failsafe {text}"
+
     def _failsafe_text(self, warnings: bool) -> str:
         chosen = [(k, v) for k, v in self.failsafes.items() if (k[0] == "WARN") == warnings]
         return "; ".join(f"{a} {reason}" + (f" (x{n})" if n > 1 else "") for (a, _), (reason, n) in chosen) or "none"
