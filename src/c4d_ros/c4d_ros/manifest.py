@@ -67,7 +67,8 @@ class Manifest:
 S, ST, CMD, L, STATS = Profile.SENSOR, Profile.STATE, Profile.COMMAND, Profile.LATCHED, Profile.STATS
 
 # --- sensors (the simulated hardware) ------------------------------------------------------
-IMU = Topic("sensors/imu", "sensor_msgs/msg/Imu", S, "500 Hz", ("sim",), ("perception",))
+IMU = Topic("sensors/imu", "sensor_msgs/msg/Imu", Profile.IMU, "500 Hz, every sample (late ones after a stall)", ("sim",),
+            ("perception",))
 GPS = Topic("sensors/gps", "sensor_msgs/msg/NavSatFix", S, "10 Hz, 50 ms latency", ("sim",), ("perception",))
 BARO = Topic("sensors/baro", "sensor_msgs/msg/FluidPressure", S, "50 Hz", ("sim",), ("perception",))
 MAG = Topic("sensors/mag", "sensor_msgs/msg/MagneticField", S, "50 Hz", ("sim",), ("perception",))
@@ -77,9 +78,10 @@ BATTERY = Topic("sensors/battery", "sensor_msgs/msg/BatteryState", S, "10 Hz", (
 GROUND_TRUTH = Topic("sim/ground_truth", "nav_msgs/msg/Odometry", S, "100 Hz", ("sim",), (),
                      "true state in `map` (tests, analysis)")
 ACTUATOR_LINK = Topic("sim/actuator_link", "diagnostic_msgs/msg/DiagnosticStatus", STATS, "1 Hz", ("sim",), (),
-                      "gaps in control/actuators as the vehicle received them: worst, p99.9, > 20 ms (tests, bench)")
+                      "the sim's diagnostics: gaps in control/actuators as the vehicle received them (worst, p99.9, "
+                      "> 20 ms) and IMU samples published late / dropped after stalls (tests, bench)")
 # --- perception ---------------------------------------------------------------------------
-P_IMU = Topic("perception/imu", "sensor_msgs/msg/Imu", S, "500 Hz", ("perception",), ("navigation", "core"),
+P_IMU = Topic("perception/imu", "sensor_msgs/msg/Imu", Profile.IMU, "500 Hz", ("perception",), ("navigation", "core"),
               "validated, calibrated; the core takes the gyro")
 P_GPS = Topic("perception/gps", "sensor_msgs/msg/NavSatFix", S, "10 Hz", ("perception",), ("navigation", "bridge"))
 P_BARO = Topic("perception/baro", "sensor_msgs/msg/FluidPressure", S, "50 Hz", ("perception",), ("navigation",))

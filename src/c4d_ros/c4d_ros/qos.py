@@ -34,6 +34,8 @@ class Profile(Enum):
     """c4d's QoS presets (like rclpy.qos.qos_profile_sensor_data, with c4d's depths)."""
 
     SENSOR = ProfileSpec(False, False, 5, "raw and conditioned sensor streams: newest data wins, a lost sample is not resent")
+    IMU = ProfileSpec(False, False, 50, "IMU streams: as sensor, deep enough for the sim's catch-up burst after a stall "
+                                        "(navigation integrates every sample)")
     STATE = ProfileSpec(False, False, 1, "vehicle state, setpoints, actuator commands: only the newest sample matters")
     COMMAND = ProfileSpec(True, False, 50, "events that must all arrive (captures)")
     LATCHED = ProfileSpec(True, True, 1, "status, schedule table, mission plan/state: late joiners get the last one")
@@ -45,6 +47,7 @@ class Profile(Enum):
 
 
 SENSOR = Profile.SENSOR.qos
+IMU = Profile.IMU.qos
 STATE = Profile.STATE.qos
 COMMAND = Profile.COMMAND.qos
 LATCHED = Profile.LATCHED.qos

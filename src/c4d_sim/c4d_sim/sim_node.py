@@ -39,7 +39,7 @@ from c4d_sched.executive import CyclicExecutive, MonotonicClock
 from c4d_sched.tickschedule import build_schedule
 
 from .actuator_link import ActuatorLinkMonitor
-from .sensors import RANGE_MIN
+from .sensors import RANGE_MIN, ImuSample
 from .sim_config import SimConfig, SimConfigError, default_sim_config, load_sim_config
 from .simulation import SENSOR_TASKS, Simulation, task_specs
 
@@ -108,7 +108,8 @@ class SimNode:
         # a sensor keeps sampling whatever the simulator's lateness: samples whose tick was skipped after
         # a stall are produced (late, once) at the next tick instead of vanishing — otherwise a 10 Hz
         # battery could fall silent for 0.7 s on a loaded machine and the health monitor would declare
-        # the sim dead (physics simulates every skipped step itself)
+        # the sim dead (physics simulates every skipped step itself and samples the IMU at each of its
+        # periods: the imu task then publishes every sample with its own stamp, Simulation.imu)
         self.executive = CyclicExecutive(schedule, tasks, MonotonicClock(spin_ns=0), name="sim", input_phase=self.drain,
                                          report_period_s=3600, manage_gc=True, catch_up=set(SENSOR_TASKS))
 
@@ -134,22 +135,28 @@ class SimNode:
             self.publish_link_report()
 
     def publish_link_report(self) -> None:
-        r = self.link.report()
-        m = DiagnosticStatus(level=DiagnosticStatus.OK, name="sim/actuator_link", hardware_id="sim",
-                             message=f"worst gap {r.max_gap_ms:.1f} ms, {r.long_gaps_total} gap(s) > 20 ms")
+        """The sim's diagnostics (1 Hz): command gaps as received, and whether the simulated IMU kept its
+        rate: samples published late (catch-up after a stall) or dropped (the sim fell too far behind: WARN)."""
+        r, imu = self.link.report(), self.sim.imu
+        m = DiagnosticStatus(level=DiagnosticStatus.WARN if imu.dropped else DiagnosticStatus.OK, name="sim/actuator_link",
+                             hardware_id="sim", message=f"worst gap {r.max_gap_ms:.1f} ms, {r.long_gaps_total} gap(s) > 20 ms; "
+                                                        f"IMU {imu.late} late, {imu.dropped} dropped")
         m.values = [KeyValue(key=key, value=f"{value:g}") for key, value in (
             ("messages", r.messages_total), ("window_max_gap_ms", r.window_max_gap_ms), ("max_gap_ms", r.max_gap_ms),
-            ("p999_gap_ms", r.p999_gap_ms), ("gaps_over_20ms", r.long_gaps_total))]
+            ("p999_gap_ms", r.p999_gap_ms), ("gaps_over_20ms", r.long_gaps_total), ("imu_samples", imu.sampled),
+            ("imu_late", imu.late), ("imu_dropped", imu.dropped), ("overruns", self.executive.profiler.overruns_total))]
         self.pub_link.publish(m)
 
     def stamp(self, t: float):
         return s_to_stamp(self.sim.wall_epoch + t)
 
     def imu(self, k: int) -> None:
+        """Publish every IMU sample taken since the last call (more than one after a stall), each with its stamp."""
+        for sample in self.sim.imu.take():
+            self.publish_imu(sample)
+
+    def publish_imu(self, sample: ImuSample) -> None:
         sc = self.sensors
-        sample = self.suite.imu(self.plant.state, 1.0 / sc.imu_rate_hz)
-        if sample is None:
-            return
         m = Imu()
         m.header.stamp, m.header.frame_id = self.stamp(sample.stamp), "base_link"
         m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = sample.gyro
@@ -238,7 +245,9 @@ class SimNode:
             executive.run()
         finally:
             executive.release_gc()
-            log.info(f"sim stopped at t = {self.plant.state.t:.1f} s; overruns {executive.profiler.overruns_total}")
+            imu = self.sim.imu
+            log.info(f"sim stopped at t = {self.plant.state.t:.1f} s; overruns {executive.profiler.overruns_total}; "
+                     f"IMU {imu.sampled} samples, {imu.late} late, {imu.dropped} dropped")
             self.node.destroy_node()
             rclpy.try_shutdown()
         return 0

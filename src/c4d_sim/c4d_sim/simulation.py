@@ -1,7 +1,8 @@
 """The simulated vehicle in real time, free of ROS: plant, sensors, faults, motor command, schedule.
 
 Why here and not in the node: what the simulator does each physics tick (wind and gust, every
-skipped step simulated after a stall so simulated time stays wall time, the ESC failsafe), how a
+skipped step simulated after a stall so simulated time stays wall time, an IMU sample taken every
+IMU period of those steps so the IMU keeps its rate and stamps, the ESC failsafe), how a
 fault setting is applied or refused, and which executive task runs at which divider are the
 simulator's behaviour; the node only maps them to topics and parameters. All of it is testable
 without DDS.
@@ -13,18 +14,53 @@ import math
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 from c4d_sched.tickschedule import TaskSpec
 
 from .plant import MultirotorPlant
-from .sensors import Faults, GpsSample, SensorSuite
+from .sensors import Faults, GpsSample, ImuSample, SensorSuite
 from .sim_config import SimConfig, SimConfigError
 
 ESC_TIMEOUT_S = 0.2  # without a motor command for this long the ESCs stop the motors
+IMU_MAX_BACKLOG_S = 0.1  # IMU samples older than this when the sim catches up are dropped (and counted)
 SENSOR_TASKS = ("imu", "gps", "baro", "mag", "range", "battery", "truth")  # executive tasks after "physics"
 BOOL_FAULTS = frozenset({"imu_dropout", "imu_freeze", "gps_loss", "baro_dropout", "baro_freeze", "mag_dropout",
                          "range_dropout"})
+
+
+@dataclass
+class ImuBacklog:
+    """IMU samples on the sensor's own clock, queued until the node publishes them.
+
+    Why: a real IMU delivers every sample at its rate whatever its host does. The simulator's
+    process is sometimes late (a stall on a busy 2-core machine); it then steps the plant through
+    the skipped ticks and samples the IMU every IMU period of them, so each sample has its own
+    stamp and its own filtered interval, and the node publishes the backlog at once (catch-up).
+    Bounded: beyond `max_samples` the oldest are dropped and counted, so the sim says when it could
+    not keep up (sim diagnostics) instead of silently slowing down.
+    """
+
+    max_samples: int
+    pending: deque[ImuSample] = field(default_factory=deque)
+    sampled: int = 0  # samples taken (dropout fault: none)
+    late: int = 0  # published after a newer sample was already due (catch-up after a stall)
+    dropped: int = 0  # beyond the backlog bound: never published
+
+    def add(self, sample: ImuSample) -> None:
+        self.sampled += 1
+        self.pending.append(sample)
+        if len(self.pending) > self.max_samples:
+            self.pending.popleft()
+            self.dropped += 1
+
+    def take(self) -> list[ImuSample]:
+        """The queued samples, oldest first; all but the newest count as late."""
+        out = list(self.pending)
+        self.pending.clear()
+        self.late += max(0, len(out) - 1)
+        return out
 
 
 class Simulation:
@@ -51,6 +87,9 @@ class Simulation:
         self._tick0_ns = tick0_ns
         self._dt = 1.0 / config.physics_rate_hz
         self._last_tick = -1
+        self._steps = 0
+        self._imu_divider = max(1, round(config.physics_rate_hz / config.sensors.imu_rate_hz))
+        self.imu = ImuBacklog(max(1, round(IMU_MAX_BACKLOG_S * config.sensors.imu_rate_hz)))
 
     def command(self, outputs: Sequence[float], armed: bool) -> None:
         """A motor command (one output per motor in [0, 1]); ignored when the count is wrong."""
@@ -58,15 +97,22 @@ class Simulation:
             self.outputs, self.armed, self.command_t = list(outputs), armed, time.monotonic()
 
     def physics(self, k: int) -> None:
-        """Executive task: advance the plant to tick k (ticks skipped after a stall are simulated too)."""
+        """Executive task: advance the plant to tick k (ticks skipped after a stall are simulated too),
+        sampling the IMU at each IMU period of the steps (stamps on the IMU's own 1/rate grid)."""
         plant, cfg = self.plant, self.config
         if self._last_tick < 0:  # anchor simulated t = 0 to the wall-clock time of tick 0's deadline
             self.wall_epoch = time.time() - (time.monotonic_ns() - (self._tick0_ns() or 0)) / 1e9 - plant.state.t
         fresh = time.monotonic() - self.command_t < ESC_TIMEOUT_S
         gust = (cfg.gust + self.extra_gust) * 0.5 * (1 - math.cos(2 * math.pi * plant.state.t / cfg.gust_period))
         plant.wind = (cfg.wind_mean[0] + gust, cfg.wind_mean[1], cfg.wind_mean[2])
+        imu_dt = self._dt * self._imu_divider
         for _ in range(k - self._last_tick):  # every skipped tick is simulated: sim time stays wall time
             plant.step(self._dt, self.outputs, self.armed and fresh)
+            self._steps += 1
+            if self._steps % self._imu_divider == 0:  # the IMU samples on its own clock, late or not
+                sample = self.suite.imu(plant.state, imu_dt)
+                if sample is not None:
+                    self.imu.add(sample)
         self._last_tick = k
 
     def gps_fixes(self) -> list[GpsSample]:

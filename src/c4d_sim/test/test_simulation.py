@@ -70,3 +70,32 @@ def test_gnss_fix_is_released_after_its_latency(config):
         sim.physics(k)
     fixes = sim.gps_fixes()
     assert [f.stamp for f in fixes] == [0.0]
+
+
+def test_imu_keeps_its_rate_and_stamps_through_a_stall(config):
+    """Issue 14 item 7: after a stall the skipped physics steps are simulated and the IMU is sampled
+    at each of its periods (own stamp, 2 ms apart), published late at once, none merged or lost."""
+    sim = simulation(config)
+    for k in range(10):
+        sim.physics(k)
+    assert [s.stamp for s in sim.imu.take()] == pytest.approx([0.002 * n for n in range(1, 6)])
+    sim.physics(40)  # 30 ticks late: 15 IMU periods elapsed
+    batch = sim.imu.take()
+    assert [s.stamp for s in batch] == pytest.approx([0.002 * n for n in range(6, 21)])
+    assert (sim.imu.sampled, sim.imu.late, sim.imu.dropped) == (20, 4 + 14, 0)
+
+
+def test_imu_backlog_beyond_its_bound_is_dropped_and_counted(config):
+    from c4d_ros.qos import Profile
+    from c4d_sim.simulation import IMU_MAX_BACKLOG_S
+
+    sim = simulation(config)
+    bound = sim.imu.max_samples
+    assert bound == round(IMU_MAX_BACKLOG_S * config.sensors.imu_rate_hz)
+    assert Profile.IMU.value.depth >= bound  # a whole catch-up burst fits the subscribers' queues
+    sim.physics(2 * 2 * bound - 1)  # a stall of two backlogs: the older half cannot be delivered
+    batch = sim.imu.take()
+    assert len(batch) == bound and sim.imu.dropped == bound and batch[-1].stamp == pytest.approx(sim.plant.state.t)
+    sim.set_fault("imu_dropout", True)
+    sim.physics(2 * 2 * bound + 9)
+    assert sim.imu.take() == [] and sim.imu.sampled == 2 * bound  # a dropout samples nothing
