@@ -187,10 +187,14 @@ class RecorderNode:
         s = self.recorder.status()
         return bool(last) and (s["state"], s["files"], s["error"]) != (last["state"], last["files"], last["error"])
 
-    def run(self) -> int:
-        """Discover, drain, poll until SIGINT/SIGTERM; close the file; 1 if a write failed, else 0."""
+    def run(self, stop_signals: list[int] | None = None) -> int:
+        """Discover, drain, poll until SIGINT/SIGTERM; close the file; 1 if a write failed, else 0.
+        `stop_signals`: the list main()'s early handlers append to (a stop that came during start-up
+        ends the run at once, cleanly)."""
         import rclpy
 
+        if stop_signals:
+            self.stopping = True
         signal.signal(signal.SIGINT, self.stop)
         signal.signal(signal.SIGTERM, self.stop)
         settings = self.settings
@@ -225,13 +229,20 @@ class RecorderNode:
 def main(argv: list[str] | None = None) -> int:
     from c4d_ros import node_runtime
 
+    # Stop requests are caught from here on, not only once the loop runs: a SIGINT during start-up
+    # (rclpy and DDS initialising, the writer thread starting) used to raise KeyboardInterrupt
+    # wherever it landed — an unclean exit, and a possible hang tearing down a half-built DDS
+    # participant, the SIGKILL the supervisor then needs (issue 14 item 15).
+    early: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: early.append(signum))
+    signal.signal(signal.SIGTERM, lambda signum, frame: early.append(signum))
     rclpy = node_runtime.init(argv)
     node = rclpy.create_node("recorder")
     try:
         recorder = RecorderNode(node, read_settings(node))
     except (ParameterError, ValueError, OSError) as exc:
         return node_runtime.fail("recorder", str(exc), node)
-    return recorder.run()
+    return recorder.run(early)
 
 
 if __name__ == "__main__":

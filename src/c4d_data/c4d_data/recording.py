@@ -29,6 +29,7 @@ from typing import Any
 from .bag_writer import BagSummary, BagWriter
 
 IDLE, RECORDING, POST_ROLL = "idle", "recording", "post_roll"
+SHUTDOWN_TIMEOUT_S = 7.0  # < the supervisor's default 10 s shutdown_timeout_s
 
 
 @dataclass
@@ -184,13 +185,21 @@ class Recorder:
                 "written": self.written, "dropped": self.dropped, "queued": self.enqueued - self.dequeued,
                 "topics": len(self.topics), "error": self.last_error}
 
-    def shutdown(self, timeout: float = 30.0) -> None:
-        """Close the open file (keeping what was received) and stop the writer thread."""
+    def shutdown(self, timeout: float = SHUTDOWN_TIMEOUT_S) -> bool:
+        """Close the open file (keeping what was received) and stop the writer thread; False (and an
+        error logged) if the writer did not finish within `timeout` — shorter than the supervisor's
+        10 s SIGINT-to-SIGKILL grace, so the process still ends by itself (the file then lacks its
+        summary; `repair` rebuilds it)."""
         if self.state != IDLE:
             self.stop_reason = "shutdown"
             self._close_file()
         self.queue.append(("exit",))
         self.thread.join(timeout)
+        if self.thread.is_alive():
+            self.last_error = f"writer still busy {timeout:g} s after the stop ({self.enqueued - self.dequeued} queued)"
+            self.log("error", self.last_error)
+            return False
+        return True
 
     # ---------------------------------------------------------------- writer thread
     def _writer_loop(self) -> None:
