@@ -24,6 +24,7 @@ from c4d_testing import installed_executable, sample_latest
 from c4d_common.geodesy import GeoOrigin
 
 M = None  # the pymavlink dialect, imported in the fixture (MAVLink 2)
+SIGNING_KEY = bytes(range(32))  # the whole module runs with MAVLink 2 signing on (bridge and GCS share it)
 SIM_HOME = GeoOrigin(43.5629, 1.4815, 146.0)  # c4d_sim's start: the ground truth's ENU origin
 
 
@@ -36,12 +37,25 @@ def free_udp_port() -> int:
 class Gcs:
     """A minimal GCS: heartbeats at 1 Hz from a thread (pausable), a receive loop with filters."""
 
-    def __init__(self, port: int) -> None:
+    def __init__(self, port: int, key: bytes | None = None) -> None:
         from pymavlink import mavutil
 
         self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255, source_component=190,
                                                dialect="common")
         self.conn.mav.srcSystem, self.beating, self.stop = 255, True, False
+        from c4d_bridge_mavlink.signing import signing_timestamp
+
+        self.port, lock, send = port, threading.Lock(), self.conn.mav.send
+
+        def locked_send(*args, **kwargs):  # the heartbeat thread and the test both send: one seq / signing timestamp each
+            with lock:  # and the signing timestamp follows the clock (pymavlink only counts frames), as MAVSDK's does
+                if self.conn.mav.signing.secret_key is not None:
+                    self.conn.mav.signing.timestamp = max(self.conn.mav.signing.timestamp, signing_timestamp())
+                return send(*args, **kwargs)
+
+        self.conn.mav.send = locked_send
+        if key is not None:
+            self.conn.setup_signing(key, sign_outgoing=True)  # and every frame from the vehicle must verify
         self.seen: list = []
         self.events: list = []
         self.procs: dict = {}
@@ -80,6 +94,19 @@ class Gcs:
             if msg.get_type() in ("STATUSTEXT", "MISSION_ITEM_REACHED"):
                 self.events.append(msg)
         return None
+
+    def text(self, where, timeout: float) -> str | None:
+        """The next STATUSTEXT whose first chunk satisfies `where`, reassembled the way MAVSDK / QGC do:
+        chunks of one non-zero id in chunk_seq order, ending at the first one shorter than 50 characters."""
+        first = self.recv("STATUSTEXT", timeout, lambda m: m.chunk_seq == 0 and where(m))
+        if first is None:
+            return None
+        parts = [first.text]
+        while first.id and len(parts[-1]) == 50:
+            part = self.recv("STATUSTEXT", 2.0, lambda m: m.id == first.id and m.chunk_seq == len(parts))
+            assert part is not None, f"chunk {len(parts)} of STATUSTEXT {first.id} ({parts}) never came"
+            parts.append(part.text)
+        return "".join(parts)
 
     def during(self, types, seconds: float) -> list:
         """Every message of `types` received in the next `seconds` (events kept as in recv)."""
@@ -131,13 +158,15 @@ def graph(module_processes, tmp_path_factory, ros_node):
     M = mavlink
     port = free_udp_port()
     params_file = tmp_path_factory.mktemp("bridge") / "params.yaml"
+    key_file = params_file.with_name("signing.key")
+    key_file.write_text(SIGNING_KEY.hex())
     nodes = [("c4d_sim", "sim", []), ("c4d_gnc", "perception", []), ("c4d_gnc", "navigation", []),
              ("c4d_gnc", "core", ["--ros-args", "-p", "rt_priority:=50"]), ("c4d_mission", "mission", []),
              ("c4d_health", "health", ["--ros-args", "-p", "link_topic:=bridge/gcs_heartbeat"]),
              ("c4d_bridge_mavlink", "bridge", ["--ros-args", "-p", f"endpoints:=['udpin:127.0.0.1:{port}']",
-                                               "-p", f"param_file:={params_file}"])]
+                                               "-p", f"param_file:={params_file}", "-p", f"signing_key_file:={key_file}"])]
     procs = {name: module_processes.spawn(name, [installed_executable(pkg, name), *args]) for pkg, name, args in nodes}
-    gcs = Gcs(port)
+    gcs = Gcs(port, SIGNING_KEY)
     gcs.procs, gcs.group = procs, module_processes
     from nav_msgs.msg import Odometry
 
@@ -197,6 +226,60 @@ def download(gcs: Gcs) -> list:
         items.append(item)
     gcs.conn.mav.mission_ack_send(1, 1, M.MAV_MISSION_ACCEPTED, 0)
     return items
+
+
+def test_unsigned_junk_does_not_starve_the_signed_gcs(graph, ros_node):
+    """Issue 14 item 13: with signing on, 32 unsigned UDP sources (1-byte datagrams, plus valid but
+    unsigned heartbeats) took the bridge's 16 peer slots and cut the signed GCS's ATTITUDE from 10 Hz
+    to 0-0.5 Hz. Only signed senders take a slot now: the GCS keeps its rate, no junk source hears
+    the vehicle, and the junk is counted in bridge/link_stats."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from c4d_ros.manifest import LINK_STATS
+
+    gcs = graph[0]
+    stats = sample_latest(ros_node[0], DiagnosticArray, LINK_STATS.name)
+    assert gcs.recv("HEARTBEAT", 30.0, lambda m: m.get_srcSystem() == 1) is not None, gcs.story()
+    assert gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 100_000).result == M.MAV_RESULT_ACCEPTED
+    senders = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(32)]
+    unsigned = [M.MAVLink(None, srcSystem=200 + k, srcComponent=190) for k in range(len(senders))]
+    stop = threading.Event()
+
+    def flood() -> None:  # ~3200 one-byte datagrams/s, and one unsigned HEARTBEAT per sender per second
+        rounds = 0
+        while not stop.is_set():
+            for sock, mav in zip(senders, unsigned, strict=True):
+                sock.sendto(b"\x00", ("127.0.0.1", gcs.port))
+                if rounds % 100 == 0:
+                    frame = M.MAVLink_heartbeat_message(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3).pack(mav)
+                    sock.sendto(frame, ("127.0.0.1", gcs.port))
+            rounds += 1
+            time.sleep(0.01)
+
+    thread = threading.Thread(target=flood, daemon=True)
+    thread.start()
+    try:
+        gcs.during("ATTITUDE", 1.0)  # the flood has filled any table it could
+        rate = len(gcs.during("ATTITUDE", 3.0)) / 3.0
+    finally:
+        stop.set()
+        thread.join()
+    heard = 0
+    for sock in senders:
+        sock.setblocking(False)
+        try:
+            while sock.recv(65535):
+                heard += 1
+        except BlockingIOError:
+            pass
+        sock.close()
+    print(f"\nsigned GCS: ATTITUDE {rate:.1f} Hz during the flood of 32 unsigned senders")
+    assert rate >= 8.0, (rate, gcs.story())
+    assert heard == 0, f"{heard} datagrams from the vehicle reached unsigned senders"
+    time.sleep(1.2)  # the next 1 Hz link_stats counts the whole flood
+    endpoint = next(s for s in stats.latest().status if s.name.startswith("bridge/endpoint"))
+    junk = int(next(v.value for v in endpoint.values if v.key == "junk_datagrams"))
+    assert junk > 1000, junk
 
 
 def test_scripted_gcs_session(graph, tmp_path):
@@ -269,8 +352,8 @@ def test_scripted_gcs_session(graph, tmp_path):
         assert got.x == int(round(sent[2][4] * 1e7)) and got.y == int(round(sent[2][5] * 1e7)) and got.z == pytest.approx(6.0)
     # a plan beyond GF_MAX_HOR_DIST (60 m) is refused with the reason; the active plan stays
     assert upload(gcs, [takeoff, wp(200.0, 0.0, 6.0), (20, 2, [0.0] * 7)]) == M.MAV_MISSION_INVALID
-    text = gcs.recv("STATUSTEXT", 5.0, lambda m: "geofence" in m.text)
-    assert text is not None and text.text.startswith("item 2")  # 1-based, as QGroundControl lists them
+    text = gcs.text(lambda m: "geofence" in m.text, 5.0)  # 51 characters: two chunks, arriving whole
+    assert text is not None and text.startswith("item 2") and text.endswith("exceeds the geofence's 60 m"), text  # 1-based
     assert len(download(gcs)) == 100
     # the plan flown: a QGC WPL 110 file as MAVProxy saves it — row 0 is home (absolute altitude),
     # no take-off item — loaded as MAVProxy's `wp load` sends it (issue 14: MISSION_ACK INVALID)
