@@ -168,6 +168,7 @@ def graph(module_processes, tmp_path_factory, ros_node):
     procs = {name: module_processes.spawn(name, [installed_executable(pkg, name), *args]) for pkg, name, args in nodes}
     gcs = Gcs(port, SIGNING_KEY)
     gcs.procs, gcs.group = procs, module_processes
+    gcs.bridge_argv = [installed_executable("c4d_bridge_mavlink", "bridge"), *nodes[-1][2]]  # a restart: the same
     from nav_msgs.msg import Odometry
 
     gcs.truth = sample_latest(ros_node[0], Odometry, "sim/ground_truth")
@@ -212,6 +213,22 @@ def truth_enu(gcs: Gcs, home: GeoOrigin) -> tuple[float, float, float]:
     """The simulator's ground truth, in the mission frame (ENU from the estimator's home)."""
     p = gcs.truth.latest().pose.pose.position
     return home.to_enu(*SIM_HOME.to_geodetic(p.x, p.y, p.z))
+
+
+def set_sim_fault(ros_node, name: str, value: bool) -> None:
+    """A sim fault parameter through its parameter service (the simulated hardware breaks)."""
+    from functools import partial
+
+    from c4d_testing import call_service, spin_for
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    node, executor = ros_node
+    client = node.create_client(SetParameters, "sim/set_parameters")
+    reply = call_service(partial(spin_for, executor), client,
+                         SetParameters.Request(parameters=[Parameter(f"fault.{name}", value=value).to_parameter_msg()]))
+    assert reply.results[0].successful, reply.results[0].reason
+    node.destroy_client(client)
 
 
 def download(gcs: Gcs) -> list:
@@ -282,7 +299,7 @@ def test_unsigned_junk_does_not_starve_the_signed_gcs(graph, ros_node):
     assert junk > 1000, junk
 
 
-def test_scripted_gcs_session(graph, tmp_path):
+def test_scripted_gcs_session(graph, tmp_path, ros_node):
     gcs, procs, group, params_file = graph
     report = []
     hb = gcs.recv("HEARTBEAT", 30.0, lambda m: m.get_srcSystem() == 1)
@@ -330,6 +347,10 @@ def test_scripted_gcs_session(graph, tmp_path):
     home_msg = gcs.recv("HOME_POSITION", 60.0)
     assert home_msg is not None, "no HOME_POSITION: estimator never set home"
     home = GeoOrigin(home_msg.latitude / 1e7, home_msg.longitude / 1e7, home_msg.altitude / 1e3)
+    # MAV_CMD_GET_HOME_POSITION (MAVProxy asks twice per session; was UNSUPPORTED): ACCEPTED + HOME_POSITION
+    assert gcs.command(M.MAV_CMD_GET_HOME_POSITION).result == M.MAV_RESULT_ACCEPTED, gcs.story()
+    again = gcs.recv("HOME_POSITION", 3.0)
+    assert again is not None and (again.latitude, again.longitude) == (home_msg.latitude, home_msg.longitude)
 
     def wp(east: float, north: float, alt: float, command: int = 16):
         lat, lon, _ = home.to_geodetic(east, north, 0.0)
@@ -365,6 +386,29 @@ def test_scripted_gcs_session(graph, tmp_path):
                              for k, (lat, lon, _) in enumerate((home.to_geodetic(e, n, 0.0) for e, n in rows), start=1)))
     assert upload_wpl_like_mavproxy(gcs, wpl) == M.MAV_MISSION_ACCEPTED, gcs.story()
     assert len(download(gcs)) == 5  # downloaded as uploaded: the home row first
+
+    # --- SYS_STATUS tells what the pre-arm checks see (issue 14.14: every sensor was always healthy, so
+    #     MAVSDK's is_armable, the PREARM_CHECK health bit, was true while ARM was refused): a range
+    #     finder fault clears its bit and PREARM_CHECK and ARM is refused; repaired, armable again
+    prearm, laser = M.MAV_SYS_STATUS_PREARM_CHECK, M.MAV_SYS_STATUS_SENSOR_LASER_POSITION
+
+    def sys_status(ok: bool, within: float):
+        return gcs.recv("SYS_STATUS", within, lambda m: m.onboard_control_sensors_present & (prearm | laser) == prearm | laser
+                        and bool(m.onboard_control_sensors_health & prearm) == ok)
+
+    t0 = time.monotonic()
+    assert sys_status(True, 30.0) is not None, gcs.story()
+    set_sim_fault(ros_node, "range_dropout", True)
+    faulty = sys_status(False, 10.0)
+    assert faulty is not None and not faulty.onboard_control_sensors_health & laser, gcs.story()
+    ack = gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    assert ack.result != M.MAV_RESULT_ACCEPTED, gcs.story()
+    assert gcs.recv("STATUSTEXT", 5.0, lambda m: "sensors not healthy" in m.text) is not None, gcs.story()
+    set_sim_fault(ros_node, "range_dropout", False)
+    assert sys_status(True, 10.0) is not None, gcs.story()
+    report.append(f"range finder fault: SYS_STATUS not armable, ARM refused, armable again in {time.monotonic() - t0:.1f} s")
+    # no "failsafe ..." text on the ground, where no failsafe was taken (issue 14.15: "failsafe cleared")
+    assert not [m.text for _, m in gcs.seen if m.get_type() == "STATUSTEXT" and m.text.startswith("failsafe")], gcs.story()
 
     # --- arm, take off, fly the mission; modes as a GCS decodes them
     for _ in range(20):
@@ -447,8 +491,13 @@ def test_scripted_gcs_session(graph, tmp_path):
     assert 3.0 + 5.0 - 0.5 <= waited <= 3.0 + 5.0 + 2.0, waited
     report.append(f"link loss → RTL after {waited:.1f} s")
     gcs.beating = True
+    # the return is AUTO.RTL (issue 14.11: it was AUTO.LOITER, MAVSDK's HOLD)
+    assert gcs.recv("HEARTBEAT", 10.0, lambda m: m.get_srcSystem() == 1 and gcs.mode_of(m) == "AUTO.RTL") is not None, \
+        gcs.story()
+
     landed = gcs.recv("HEARTBEAT", 60.0, lambda m: m.get_srcSystem() == 1 and not m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
     assert landed is not None, "did not land and disarm after RTL"
+    assert gcs.mode_of(landed) == "AUTO.LOITER", gcs.story()  # a mode MAVProxy names (was AUTO.READY: UNKNOWN)
     modes = [gcs.mode_of(m) for _, m in gcs.seen if m.get_type() == "HEARTBEAT" and m.get_srcSystem() == 1]
     assert "AUTO.LAND" in modes, gcs.story()
 
@@ -466,4 +515,22 @@ def test_scripted_gcs_session(graph, tmp_path):
     at = truth_enu(gcs, home)
     assert math.dist(at[:2], rows[0]) < 1.5 and at[2] == pytest.approx(5.0, abs=0.6), (at, gcs.story())
     report.append(f"started on the ground: took off and reached item 1 ({at[0]:.1f}, {at[1]:.1f}, {at[2]:.1f}) m")
+
+    # --- the bridge killed (-9) and restarted while the vehicle holds in the air (the mission paused): its
+    #     heartbeats must never claim a state it has not heard (issue 14.12: the first said AUTO.READY and
+    #     disarmed). With no bridge, health may take the link-loss RTL (8 s): AUTO.RTL is then the truth.
+    gcs.set_mode(4, 3, "AUTO.LOITER", within=5.0)
+    procs["bridge"].kill()
+    procs["bridge"].wait()
+    t0 = time.monotonic()
+    procs["bridge"] = group.spawn("bridge_restarted", gcs.bridge_argv)
+    gcs.during("HEARTBEAT", 0.5)  # whatever the old bridge had sent is consumed (the new one takes > 1 s to start)
+    first = gcs.recv("HEARTBEAT", 30.0, lambda m: m.get_srcSystem() == 1)
+    sig = gcs.conn.mav.signing
+    assert first is not None, ("no heartbeat from the restarted bridge", sorted({m.get_type() for t, m in gcs.seen if t > t0}),
+                               sig.badsig_count, sig.reject_count, group.log_of(procs["bridge"])[-2000:])
+    report.append(f"bridge kill -9 + restart in flight: first heartbeat {time.monotonic() - t0:.1f} s after the kill")
+    beats = [first, *gcs.during("HEARTBEAT", 1.5)]
+    claims = [(gcs.mode_of(m), bool(m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)) for m in beats if m.get_srcSystem() == 1]
+    assert all(armed and mode in ("AUTO.LOITER", "AUTO.RTL") for mode, armed in claims), (claims, gcs.story())
     print("\n" + "\n".join(report))

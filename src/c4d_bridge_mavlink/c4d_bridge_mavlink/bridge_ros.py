@@ -174,7 +174,7 @@ class RosSide:
             self.missions.active_plan_id = msg.plan_id
         wire = (lambda i: self.missions.wire_seq(msg.plan_id, i)) if self.missions is not None else (lambda i: i)
         s.mission_current, s.mission_total = wire(msg.current_item), wire(msg.total_items)
-        s.mission_state = MISSION_STATE.get(msg.state, 0)
+        s.mission_state, s.mission_known = MISSION_STATE.get(msg.state, 0), True
         if msg.last_reached_item >= 0 and msg.last_reached_item != self.last.reached and self.router:
             self.router.send(M.MAVLink_mission_item_reached_message(wire(msg.last_reached_item)))
         self.last.reached = msg.last_reached_item

@@ -36,6 +36,7 @@ class Snapshot:
 
     boot_s: float = 0.0  # monotonic time of the bridge start (time_boot_ms origin)
     status_known: bool = False  # vehicle/status heard: until then armed / mode / landed are not known
+    mission_known: bool = False  # mission/state heard: until then NAV_GOTO may be a plan or a go-to
     armed: bool = False
     flight_mode: int = Mode.AUTO
     nav_state: int = Nav.NONE
@@ -73,9 +74,11 @@ def _i(value: float, scale: float, unknown: int) -> int:
 
 
 def heartbeat(s: Snapshot) -> M.MAVLink_heartbeat_message | None:
-    """The vehicle's HEARTBEAT; None (nothing sent) until its status has been heard: a restarted
-    bridge must not claim a state it does not know (PX4 sends no heartbeat before it knows its own)."""
-    if not s.status_known:
+    """The vehicle's HEARTBEAT; None (nothing sent) until its status has been heard — and, while it
+    follows setpoints (NAV_GOTO), the mission state that says whether that is a plan or a go-to: a
+    restarted bridge must not claim a state it does not know (PX4 sends no heartbeat before it knows
+    its own)."""
+    if not s.status_known or (s.nav_state == Nav.GOTO and not s.mission_known):
         return None
     base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED
     if s.flight_mode == Mode.AUTO:

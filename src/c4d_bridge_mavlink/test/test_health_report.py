@@ -24,7 +24,7 @@ def test_every_mode_and_navigation_state_has_a_name_stock_gcss_know():
 
 
 def test_rtl_is_reported_as_rtl_in_the_heartbeat_with_or_without_a_plan():
-    s = enc.Snapshot(status_known=True, armed=True, flight_mode=Mode.AUTO, nav_state=Nav.RTL)
+    s = enc.Snapshot(status_known=True, mission_known=True, armed=True, flight_mode=Mode.AUTO, nav_state=Nav.RTL)
     for mission_state in (M.MISSION_STATE_PAUSED, M.MISSION_STATE_ACTIVE):  # a commanded RTL aborts the plan; an rtl item
         s.mission_state = mission_state
         assert mode_name(enc.heartbeat(s).custom_mode) == "AUTO.RTL"
@@ -37,9 +37,13 @@ def test_rtl_is_reported_as_rtl_in_the_heartbeat_with_or_without_a_plan():
 def test_no_heartbeat_until_the_vehicle_status_is_known():
     s = enc.Snapshot()  # a restarted bridge: armed=False is a default, not news
     assert enc.heartbeat(s) is None
-    s.status_known, s.armed, s.nav_state = True, True, Nav.MISSION
+    s.status_known, s.armed, s.nav_state = True, True, Nav.HOLD
     hb = enc.heartbeat(s)
     assert hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED and hb.system_status == M.MAV_STATE_ACTIVE
+    s.nav_state = Nav.GOTO  # a plan's leg or a go-to: the mission state tells
+    assert enc.heartbeat(s) is None
+    s.mission_known, s.mission_state = True, M.MISSION_STATE_ACTIVE
+    assert mode_name(enc.heartbeat(s).custom_mode) == "AUTO.MISSION"
 
 
 ALL_OK = {name: True for name in PERCEPTION_BITS}
