@@ -29,7 +29,7 @@ from functools import partial
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from sensor_msgs.msg import BatteryState
 
 from c4d_common import quat
@@ -113,12 +113,17 @@ class MissionNode:
         node.create_service(DownloadMission, m.MISSION_DOWNLOAD.name, self._on_download)
         node.create_service(MissionControl, m.MISSION_CONTROL.name, self._on_control)
         node.create_service(VehicleCommand, m.VEHICLE_COMMAND.name, self._on_vehicle_command)
-        node.create_timer(TICK_S, self._tick)
+        node.create_timer(TICK_S, self._tick, callback_group=self.loop)
 
     def _subscribe(self) -> None:
-        self.node.create_subscription(VehicleStatus, m.STATUS.name, partial(setattr, self, "status"), m.STATUS.qos)
-        self.node.create_subscription(BatteryState, m.BATTERY.name, partial(setattr, self, "battery"), m.BATTERY.qos)
-        self.node.create_subscription(DiagnosticArray, m.P_HEALTH.name, self._on_health, m.P_HEALTH.qos)
+        # the guidance tick and its inputs in a group of their own (issue 14.2): the default group is
+        # held by a vehicle/command awaiting the core's answer, and sharing it froze guidance and the
+        # mission/state heartbeat (health's liveness) for as long as the core took — for ever if lost
+        self.loop = MutuallyExclusiveCallbackGroup()
+        for msg_type, topic, handle in ((VehicleStatus, m.STATUS, partial(setattr, self, "status")),
+                                        (BatteryState, m.BATTERY, partial(setattr, self, "battery")),
+                                        (DiagnosticArray, m.P_HEALTH, self._on_health)):
+            self.node.create_subscription(msg_type, topic.name, handle, topic.qos, callback_group=self.loop)
 
     # ------------------------------------------------------------------ inputs
     def _now(self) -> float:
@@ -313,14 +318,13 @@ class MissionNode:
             self._on_state(sample)
         if self.pending is not None and not self._restore():
             return
-        if self.state is None or self.status is None:
-            return
         t = self._now()
-        for runner, out in self.arbiter.step(t, TICK_S, self._vehicle()):
-            for command, value in out.requests:
-                self._send_core(command, value).add_done_callback(partial(self._core_answered, runner, command))
-            if out.setpoint is not None:
-                self.pub_setpoint.publish(setpoint_msg(t, *out.setpoint))
+        if self.state is not None and self.status is not None:  # guidance needs both, the heartbeat neither
+            for runner, out in self.arbiter.step(t, TICK_S, self._vehicle()):
+                for command, value in out.requests:
+                    self._send_core(command, value).add_done_callback(partial(self._core_answered, runner, command))
+                if out.setpoint is not None:
+                    self.pub_setpoint.publish(setpoint_msg(t, *out.setpoint))
         mission = self.arbiter.mission
         key = (mission.plan.plan_id if mission.plan else 0, int(mission.status), mission.current, mission.last_reached)
         if key != self.last_state_key or t - self.last_state_pub >= STATE_HEARTBEAT_S:
