@@ -2,7 +2,8 @@
 the GCS side) against the whole SITL graph through the c4d MAVLink bridge: it connects, sees
 health (global position, home) and a position, sets the take-off altitude (a parameter), arms,
 takes off, uploads a 4-waypoint mission, starts and flies it to the end, returns to launch, and
-the vehicle lands and disarms within 2 m of home.
+the vehicle lands and disarms within 2 m of home; the flight modes MAVSDK decodes say RETURN_TO_LAUNCH
+during the return, LAND for its landing, HOLD once landed.
 
 The bridge sends to MAVSDK's UDP port (`udpout`), MAVSDK listens (`udpin://`), as with PX4 SITL.
 Every wait is bounded; a failure names the step and carries the MAVSDK log and the bridge log.
@@ -129,6 +130,14 @@ async def fly(port: int, s: Session, result: Path) -> dict:
         out["autopilot"] = (await system.autopilot_type()).name
         out["version"] = await drone.version()
         telemetry, action, mission = TelemetryAsync(system), ActionAsync(system), MissionAsync(system)
+        modes: list[str] = []  # every flight mode MAVSDK reports, changes only
+
+        async def watch_modes(source: TelemetryAsync) -> None:
+            async for mode in source.subscribe_flight_mode():
+                if not modes or modes[-1] != mode.name:
+                    modes.append(mode.name)
+
+        watcher = asyncio.ensure_future(watch_modes(telemetry))
 
         await s.step("health: global + home position OK", s.until(
             telemetry.subscribe_health(), lambda h: h.is_global_position_ok and h.is_home_position_ok), 60.0)
@@ -171,8 +180,13 @@ async def fly(port: int, s: Session, result: Path) -> dict:
         position = await s.step("position at the end", telemetry.position(), 5.0)
         out["end_of_mission"] = enu_from(home, position.latitude_deg, position.longitude_deg)
 
+        rtl_from = max(0, len(modes) - 1)  # the mode when the RTL is commanded, and every one after
         await s.step("return to launch", action.return_to_launch(), 10.0)
         await s.step("land and disarm", s.until(telemetry.subscribe_armed(), lambda armed: not armed), 60.0)
+        await asyncio.sleep(1.5)  # the mode after landing (HEARTBEAT, 1 Hz)
+        out["rtl_modes"] = modes[rtl_from:]
+        out["modes"] = list(modes)
+        watcher.cancel()
         out["landed_state"] = (await s.step("on the ground", s.until(  # EXTENDED_SYS_STATE is a 1 Hz stream
             telemetry.subscribe_landed_state(), lambda st: st == LandedState.ON_GROUND), 5.0)).name
         position = await s.step("final position", telemetry.position(), 5.0)
@@ -233,12 +247,19 @@ def test_mavsdk_session(graph, tmp_path):
     assert out["progress"][-1] == [len(WAYPOINTS) + 1] * 2 and out["finished"], out["progress"]
     assert math.dist(out["end_of_mission"], WAYPOINTS[-1]) < 1.5, out["end_of_mission"]
     assert out["landed_state"] == "ON_GROUND"
+    # issue 14.11: the return is reported as RETURN_TO_LAUNCH (was HOLD: MISSION → HOLD → LAND), its
+    # landing as LAND, and the landed vehicle in a mode MAVSDK names (HOLD = AUTO.LOITER; was READY)
+    rtl = out["rtl_modes"]
+    assert "RETURN_TO_LAUNCH" in rtl and "LAND" in rtl, out["modes"]
+    returning = rtl[rtl.index("RETURN_TO_LAUNCH"):rtl.index("LAND")]
+    assert set(returning) == {"RETURN_TO_LAUNCH"} and rtl[-1] == "HOLD", out["modes"]
     east, north = out["final"]
     assert math.hypot(east, north, out["final_alt"]) < 2.0, (east, north, out["final_alt"])  # estimated height
     # GLOBAL_POSITION_INT and LOCAL_POSITION_NED tell the same height
     assert out["final_alt"] == pytest.approx(-out["final_down"], abs=0.2), (out["final_alt"], out["final_down"])
     print(f"\nMAVSDK {out['version']}")
     print("\n".join(f"{name}: {dt:.1f} s" for name, dt in out["durations"]))
+    print(f"flight modes {out['modes']}")
     print(f"mission progress {out['progress']}; final {east:+.2f} E {north:+.2f} N {out['final_alt']:+.2f} U m "
           f"from home (estimated); whole MAVSDK session {out['total']:.1f} s")
     if teardown_crash:
