@@ -32,6 +32,7 @@ from c4d_ros import node_runtime
 from c4d_ros.drain import Drainer
 from c4d_ros.manifest import ACTUATORS, CORE_COMMAND, EXECUTOR_STATS, NAV_STATE, P_IMU, SCHEDULE, SETPOINT, STATUS
 from c4d_ros.params import Declaration, ParameterError, Spec
+from c4d_ros.qos import newest_only
 from c4d_sched.executive import CyclicExecutive, MonotonicClock
 from c4d_sched.profiler import ExecutorReport, format_table
 
@@ -82,7 +83,7 @@ class CoreNode:
         self.core = GncCore(cfg.airframe, cfg.schedule.tick_us / 1e6)
         self.status = StatusCadence()
         self.drainer = Drainer(node)
-        self.drainer.subscription(Imu, params.imu_topic, self.on_imu, P_IMU.qos)
+        self.drainer.subscription(Imu, params.imu_topic, self.on_imu, newest_only(P_IMU.qos))  # rate loop: newest gyro
         self.drainer.subscription(VehicleState, NAV_STATE.name, self.on_state, NAV_STATE.qos)
         self.drainer.subscription(GuidanceSetpoint, SETPOINT.name, self.on_setpoint, SETPOINT.qos)
         self.drainer.service(VehicleCommand, CORE_COMMAND.name, self.on_command)

@@ -52,3 +52,11 @@ STATE = Profile.STATE.qos
 COMMAND = Profile.COMMAND.qos
 LATCHED = Profile.LATCHED.qos
 STATS = Profile.STATS.qos
+
+
+def newest_only(profile: QoSProfile) -> QoSProfile:
+    """`profile` for a reader that uses only the newest sample (depth 1): same reliability and
+    durability, so it matches the writer, but after a stall it does not wade through a burst it
+    would throw away (the core's gyro: one take per tick instead of up to 50)."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=profile.reliability,
+                      durability=profile.durability)
