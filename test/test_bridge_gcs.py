@@ -364,6 +364,7 @@ def test_scripted_gcs_session(graph, tmp_path, ros_node):
         result = upload(gcs, big)
         if result == M.MAV_MISSION_ACCEPTED:
             break
+        assert result == M.MAV_MISSION_ERROR, result  # "not yet" (no home / battery state): ERROR, not INVALID
         time.sleep(1.0)
     assert result == M.MAV_MISSION_ACCEPTED, result
     back = download(gcs)

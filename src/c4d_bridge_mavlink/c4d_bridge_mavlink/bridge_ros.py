@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.mavlink_items import ItemProblem, MavlinkItemError, item_from_mavlink, item_to_mavlink
 from c4d_common.plan import Geofence, Plan, PlanError
-from c4d_common.vehicle import CommandResult, FailsafeAction, MissionAction, MissionStatus
+from c4d_common.vehicle import CommandResult, FailsafeAction, MissionAction, MissionStatus, UploadRefusal
 from c4d_ros import manifest as topics
 from c4d_ros.drain import LatestSampler
 
@@ -34,6 +34,10 @@ MISSION_STATE = {MissionStatus.NO_PLAN: M.MISSION_STATE_NO_MISSION, MissionStatu
 WIRE_FRAME = {M.MAV_FRAME_GLOBAL_RELATIVE_ALT: M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}  # downloads use the _INT frames
 ITEM_RESULT = {ItemProblem.FRAME: M.MAV_MISSION_UNSUPPORTED_FRAME, ItemProblem.COMMAND: M.MAV_MISSION_UNSUPPORTED,
                ItemProblem.VALUE: M.MAV_MISSION_INVALID}  # MISSION_ACK type for an item the plan cannot take
+# MISSION_ACK type for a plan the mission node refused: ERROR ("not accepting mission commands right now")
+# when the same upload may pass later (no home / battery state yet), DENIED while a plan runs.
+UPLOAD_REFUSAL_RESULT = {UploadRefusal.NO_HOME: M.MAV_MISSION_ERROR, UploadRefusal.BATTERY_UNKNOWN: M.MAV_MISSION_ERROR,
+                         UploadRefusal.MISSION_ACTIVE: M.MAV_MISSION_DENIED, UploadRefusal.INVALID: M.MAV_MISSION_INVALID}
 
 
 def failsafe_action(name: str) -> FailsafeAction:
@@ -304,7 +308,7 @@ class RosSide:
                 M.MAV_MISSION_ACCEPTED if r == CommandResult.ACCEPTED else M.MAV_MISSION_DENIED))
         home_alt = self.snapshot.home[2] if self.snapshot.home else None
         try:
-            plan_items = tuple(item_from_mavlink(i.command, i.frame, i.params, home_alt, where=f"item {k}")
+            plan_items = tuple(item_from_mavlink(i.command, i.frame, i.params, home_alt, where=f"item {k + 1}")
                                for k, i in enumerate(items))
         except MavlinkItemError as exc:
             self.statustext(M.MAV_SEVERITY_WARNING, str(exc))
@@ -320,7 +324,7 @@ class RosSide:
                 return finish(M.MAV_MISSION_ERROR)
             if not reply.accepted:
                 self.statustext(M.MAV_SEVERITY_WARNING, reply.errors[0] if reply.errors else "mission rejected")
-                return finish(M.MAV_MISSION_INVALID)
+                return finish(UPLOAD_REFUSAL_RESULT.get(UploadRefusal(reply.refusal), M.MAV_MISSION_INVALID))
             finish(M.MAV_MISSION_ACCEPTED, reply.plan_id)
 
         self._call(self.upload, self.UploadMission.Request(plan=plan_to_msg(plan)), verdict)
