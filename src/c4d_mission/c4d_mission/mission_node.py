@@ -8,7 +8,7 @@ checked against the geofence unless `force`) are flown by the mission node; disa
 hold and set mode are forwarded to the core's gnc/command; once the core accepts, hold and set
 mode pause the mission (resumed by mission/control resume), land and disarm abort it; a refused
 command changes nothing). Publishes guidance/setpoint (50 Hz while a mission or RTL
-flies), mission/state (on change and at 2 Hz) and mission/plan (latched). Mode changes reach
+flies), mission/state (on change and at 5 Hz) and mission/plan (latched). Mode changes reach
 the core only through its latched gnc/command interface.
 Parameters: plan_file (loaded and validated once home is known), min_battery (0.2),
 takeoff_altitude (2.5 m: least take-off altitude of a plan without a take-off item),

@@ -107,7 +107,7 @@ EXECUTOR_STATS = Topic("gnc/executor_stats", "c4d_interfaces/msg/ExecutorStats",
                        ("health", "bridge"), "cyclic-executive profiler")
 SCHEDULE = Topic("gnc/schedule", "c4d_interfaces/msg/ScheduleTable", L, "once", ("core",), (), "static schedule (GCD+)")
 # --- mission and payload ------------------------------------------------------------------
-MISSION_STATE = Topic("mission/state", "c4d_interfaces/msg/MissionState", L, "on change + 2 Hz", ("mission",),
+MISSION_STATE = Topic("mission/state", "c4d_interfaces/msg/MissionState", L, "on change + 5 Hz", ("mission",),
                       ("payload", "health", "bridge"), "health: mission's liveness")
 MISSION_PLAN = Topic("mission/plan", "c4d_interfaces/msg/MissionPlan", L, "on change", ("mission",),
                      ("payload", "health", "bridge"))
