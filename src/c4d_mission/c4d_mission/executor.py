@@ -148,6 +148,7 @@ class MissionExecutor:
         if not 0 <= item < len(self.plan.items):
             return f"item {item} does not exist"
         self.current, self._phase, self.status, self._tracker = item, "start", MissionStatus.ACTIVE, None
+        self._armed = False  # a new run: a disarm seen before it (not yet stepped) must not abort it
         return ""
 
     def set_current(self, item: int) -> str:

@@ -234,3 +234,17 @@ def test_a_disarm_outside_the_plan_ends_the_mission_its_own_landing_completes_it
     assert (Command.LAND, 0.0) in out[0][1].requests
     hop.step(0.02, 0.02, Vehicle((0.0, 8.0, 0.0), False, False, int(Nav.NONE)))
     assert hop.mission.status == MissionStatus.COMPLETED
+
+
+def test_a_start_right_after_a_failsafe_landing_is_flown_not_aborted_by_the_old_disarm():
+    """CI race: MISSION_START arrived within one tick of the disarm after an RTL; the first step then
+    saw armed (from the flight) → disarmed and aborted the fresh start, though START was ACCEPTED."""
+    arbiter = survey_arbiter()
+    arbiter.control(MissionAction.START)
+    arbiter.mission.current = 3
+    arbiter.step(0.0, 0.02, Vehicle((0.0, 0.0, 8.0), True, True, int(Nav.RTL)))
+    arbiter.mission.abort()  # the failsafe's RTL ended the plan; the landing and disarm not stepped yet
+    assert arbiter.control(MissionAction.START).result == CommandResult.ACCEPTED
+    out = arbiter.step(0.02, 0.02, Vehicle((0.0, 0.0, 0.0), False, False, int(Nav.NONE)))
+    assert arbiter.mission.status == MissionStatus.ACTIVE, arbiter.mission.last_error
+    assert any(command == Command.TAKEOFF for _, o in out for command, _ in o.requests)
