@@ -223,7 +223,11 @@ def test_replay_reproduces_counts_and_rates(flights, ros_node, ros_env, tmp_path
     for name, topic in original.topics.items():
         if name in MULTI_PUBLISHER or name == "/recorder/status":
             continue
-        assert replayed.topics[name].count == topic.count, name
+        got = replayed.topics[name].count
+        if "reliability: best_effort" in topic.offered_qos:  # best effort may drop on a loaded 2-core machine (CI: 17 of 975)
+            assert topic.count * 0.98 <= got <= topic.count, (name, got, topic.count)
+        else:  # reliable: every message, exactly once
+            assert got == topic.count, (name, got, topic.count)
         if topic.count >= 20:
             t0 = [m.log_time for _, m in iter_messages(original, [name])]
             t1 = [m.log_time for _, m in iter_messages(replayed, [name])]
