@@ -47,7 +47,10 @@ def test_no_node_restart_or_foreign_participant_disturbs_the_flight(ros_env, tmp
     table = "\n".join(f"{w.label:32s} worst tick {w.worst_tick_ms:6.1f} ms, skipped {w.skipped_ticks:4d}, "
                       f"alt {w.min_alt:5.2f}..{w.max_alt:5.2f} m, platform stall {w.platform_stall_ms:5.1f} ms" for w in windows)
     print(f"\n{table}\nvehicle command link: {link}")
-    assert code == 0 and "flight     completed" in log, log[-3000:]
+    mission_log = flight.run_dir / "run" / "logs" / "mission.log"
+    mission_lines = mission_log.read_text(errors="replace").splitlines()
+    restores = [ln for ln in mission_lines if any(w in ln for w in ("WARN", "restor", "resum"))]
+    assert code == 0 and "flight     completed" in log, log[-3000:] + "\nmission node:\n" + "\n".join(restores[-20:])
     for w in windows:
         assert w.worst_tick_ms < bound(w.platform_stall_ms, 10.0), f"{w.label}: core tick\n{table}"
         assert CRUISE_ALT - 1.0 <= w.min_alt and w.max_alt <= CRUISE_ALT + 1.0, f"{w.label}: altitude\n{table}"

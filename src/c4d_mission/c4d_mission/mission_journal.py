@@ -132,7 +132,7 @@ class Resumption:
         return self.status == MissionStatus.ACTIVE
 
 
-def resume_status(saved: MissionStatus, vehicle: VehicleCheck | None) -> Resumption:
+def resume_status(saved: MissionStatus, vehicle: VehicleCheck) -> Resumption:
     """An active mission continues only while the vehicle still flies it: armed, in the air, in
     AUTO and under no failsafe that took it (hold → paused; RTL, land, terminate → aborted, as the
     mission node itself does on those commands). A vehicle on the ground ends it (aborted); one
@@ -140,8 +140,6 @@ def resume_status(saved: MissionStatus, vehicle: VehicleCheck | None) -> Resumpt
     saved status is kept as it was: a completed or aborted mission never flies again by itself."""
     if saved != MissionStatus.ACTIVE:
         return Resumption(saved, f"was {saved.name.lower()}")
-    if vehicle is None:
-        return Resumption(MissionStatus.PAUSED, "no vehicle status received")
     if not vehicle.armed or vehicle.landed not in FLYING:
         return Resumption(MissionStatus.ABORTED, "the vehicle is disarmed or on the ground")
     if vehicle.failsafe >= FailsafeAction.RTL:

@@ -64,7 +64,7 @@ from .prearm import PreArmChecks, PreArmInputs
 
 TICK_S = 0.02  # guidance rate 50 Hz
 STATE_HEARTBEAT_S = 0.2  # mission/state also at 5 Hz when nothing changes (health's liveness)
-STATUS_WAIT_S = 3.0  # after a restart, how long a journalled active mission waits for the latched vehicle/status
+STATUS_WARN_S = 3.0  # after a restart, a journalled plan still waiting for vehicle/status is reported after this long
 PARAMETERS = {
     "plan_file": Spec("", "plan loaded and validated once home is known (c4d YAML or QGC .plan path; empty: none)",
                       read_only=True),
@@ -98,7 +98,7 @@ class MissionNode:
         self.journalled: Checkpoint | None = None  # the last checkpoint written
         self.journal_ok = True
         self.pending = self._read_journal()  # a plan to take back once home (and the vehicle status) is known
-        self.status_deadline = time.monotonic() + STATUS_WAIT_S
+        self.status_warn_at: float | None = time.monotonic() + STATUS_WARN_S  # None once warned
         self.plan_file_tried = self.pending is not None
         self.pub_setpoint = node.create_publisher(GuidanceSetpoint, m.SETPOINT.name, m.SETPOINT.qos)
         self.pub_state = node.create_publisher(MissionState, m.MISSION_STATE.name, m.MISSION_STATE.qos)
@@ -180,19 +180,26 @@ class MissionNode:
         return entry if entry is not None and entry.plan is not None else None
 
     def _restore(self) -> bool:
-        """Take back the journalled plan once home is known and the vehicle status is in (or
-        STATUS_WAIT_S passed); True when done. Resumes an active mission only if the vehicle still
-        flies it (mission_journal.resume_status)."""
+        """Take back the journalled plan once home and the vehicle status are known; True when done.
+        Resumes an active mission only if the vehicle still flies it (mission_journal.resume_status)."""
         entry, home, st = self.pending, self._home(), self.status
         if entry is None or entry.plan is None:
             return True
-        if home is None or (st is None and time.monotonic() < self.status_deadline):
+        if home is None or st is None:
+            # Never judged blind: the vehicle still flying the plan is known only from its status
+            # (latched by the core, which holds position meanwhile). Under load a restarted process
+            # can take seconds to discover it; deciding without it paused a mission the vehicle
+            # was still flying (CI, issue 14).
+            if self.status_warn_at is not None and time.monotonic() >= self.status_warn_at:
+                self.status_warn_at = None
+                missing = " and ".join(n for n, v in (("home", home), (m.STATUS.name, st)) if v is None)
+                self.node.get_logger().warning(f"journalled plan {entry.plan.plan_id} waits for {missing} "
+                                               "before deciding whether to resume it")
             return False
         self.pending = None
         if self.arbiter.mission.plan is not None:  # a plan uploaded meanwhile is newer
             return True
-        vehicle = None if st is None else VehicleCheck(bool(st.armed), Landed(st.landed_state), Mode(st.flight_mode),
-                                                       FailsafeAction(st.failsafe_action))
+        vehicle = VehicleCheck(bool(st.armed), Landed(st.landed_state), Mode(st.flight_mode), FailsafeAction(st.failsafe_action))
         verdict = resume_status(entry.checkpoint.status, vehicle)
         plan, k, n = entry.plan, entry.checkpoint.current, len(entry.plan.items)
         self.arbiter.restore(plan, home, entry.checkpoint, verdict.status)

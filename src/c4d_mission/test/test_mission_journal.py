@@ -107,7 +107,6 @@ def test_only_an_active_mission_still_flown_resumes():
     }
     for vehicle, status in cases.items():
         assert resume_status(MissionStatus.ACTIVE, vehicle).status == status, vehicle
-    assert resume_status(MissionStatus.ACTIVE, None).status == MissionStatus.PAUSED
 
 
 def test_a_restarted_executor_continues_where_the_killed_one_was(tmp_path):
