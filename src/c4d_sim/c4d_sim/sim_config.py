@@ -9,17 +9,15 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
 from c4d_common.airframe import GRAVITY, Airframe, AirframeError, default_airframe_path, load_airframe
-from c4d_common.config_file import yaml_error_text
+from c4d_common.config_file import ConfigError, read_yaml_mapping, reject_unknown
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.share import share_file
 
 from .sensors import SensorConfig, SensorConfigError
 
 
-class SimConfigError(ValueError):
+class SimConfigError(ConfigError):
     """The sim configuration is unusable; the text is one line naming the field."""
 
 
@@ -57,17 +55,9 @@ def _number(doc: dict, key: str, where: str, positive: bool = False) -> float:
 
 
 def load_sim_config(path: Path) -> SimConfig:
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise SimConfigError(f"cannot read sim config {path}: {exc.strerror}") from None
-    except yaml.YAMLError as exc:
-        raise SimConfigError(f"sim config {path}: {yaml_error_text(exc)}") from None
-    if not isinstance(doc, dict):
-        raise SimConfigError("sim config: must be a mapping")
-    unknown = set(doc) - {"airframe", "start", "physics_rate_hz", "ground_truth_rate_hz", "seed", "wind", "sensors"}
-    if unknown:
-        raise SimConfigError(f"sim config: unknown field(s) {', '.join(sorted(unknown))}")
+    doc = read_yaml_mapping(path, "sim config", SimConfigError)
+    reject_unknown(doc, {"airframe", "start", "physics_rate_hz", "ground_truth_rate_hz", "seed", "wind", "sensors"}, "sim config",
+                   SimConfigError)
     start = doc.get("start") or {}
     for key in ("latitude", "longitude", "altitude"):
         _number(start, key, "start.")

@@ -99,3 +99,18 @@ def test_imu_backlog_beyond_its_bound_is_dropped_and_counted(config):
     sim.set_fault("imu_dropout", True)
     sim.physics(2 * 2 * bound + 9)
     assert sim.imu.take() == [] and sim.imu.sampled == 2 * bound  # a dropout samples nothing
+
+
+def test_unusable_sim_config_files_are_one_line_errors(tmp_path):
+    """The sim config is read by the shared loader: the same one-line errors as every c4d config."""
+    cases = {"list.yaml": ("- 1\n- 2\n", "must be a mapping"),
+             "typo.yaml": ("phyiscs_rate_hz: 1000\n", "unknown field(s) phyiscs_rate_hz"),
+             "broken.yaml": ("start: [1, 2\n", "line 2")}
+    for name, (text, expected) in cases.items():
+        path = tmp_path / name
+        path.write_text(text)
+        with pytest.raises(SimConfigError) as err:
+            load_sim_config(path)
+        assert expected in str(err.value) and "\n" not in str(err.value), err.value
+    with pytest.raises(SimConfigError, match="cannot read sim config"):
+        load_sim_config(tmp_path / "missing.yaml")
