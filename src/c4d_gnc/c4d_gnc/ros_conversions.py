@@ -85,7 +85,7 @@ def stats_msg(report: ExecutorReport, now: float) -> ExecutorStats:
     msg.header.stamp = s_to_stamp(now)
     for name in ("executor", "tick_rate_hz", "ticks_total", "overruns_total", "skipped_ticks_total", "ticks", "overruns",
                  "skipped_ticks", "load_mean_percent", "load_max_percent", "release_jitter_mean_us",
-                 "release_jitter_max_us", "release_jitter_p99_us", "cpu_percent"):
+                 "release_jitter_max_us", "release_jitter_p99_us", "release_jitter_p50_us", "cpu_percent"):
         setattr(msg, name, getattr(report, name))
     msg.tasks = [
         ExecutorTaskStats(name=t.name, group=t.group, divider=t.divider, count=t.count, period_mean_us=t.period_mean_us,

@@ -61,6 +61,7 @@ class ExecutorReport:
     release_jitter_mean_us: float
     release_jitter_max_us: float
     release_jitter_p99_us: float
+    release_jitter_p50_us: float
     cpu_percent: float
     tasks: tuple[TaskReport, ...] = field(default_factory=tuple)
 
@@ -143,7 +144,8 @@ class Profiler:
                 100.0 * w.duty_sum * 1000.0 / window_ns,
             ))
         jitters = sorted(self.jitters)
-        p99 = jitters[min(len(jitters) - 1, math.ceil(0.99 * len(jitters)) - 1)] / 1000.0 if jitters else 0.0
+        p99, p50 = (jitters[min(len(jitters) - 1, math.ceil(q * len(jitters)) - 1)] / 1000.0 if jitters else 0.0
+                    for q in (0.99, 0.5))
         report = ExecutorReport(
             executor=self.name,
             tick_rate_hz=1e9 / self.tick_ns,
@@ -159,6 +161,7 @@ class Profiler:
             release_jitter_mean_us=sum(jitters) / len(jitters) / 1000.0 if jitters else 0.0,
             release_jitter_max_us=jitters[-1] / 1000.0 if jitters else 0.0,
             release_jitter_p99_us=p99,
+            release_jitter_p50_us=p50,
             cpu_percent=100.0 * (cpu_ns - cpu_start) / window_ns,
             tasks=tuple(tasks),
         )

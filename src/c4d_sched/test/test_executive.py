@@ -3,7 +3,7 @@
 import pytest
 
 from c4d_sched.executive import CyclicExecutive, FakeClock
-from c4d_sched.profiler import format_table
+from c4d_sched.profiler import Profiler, format_table
 from c4d_sched.tickschedule import ScheduleConfigError, parse_config, schedule_from_config
 
 CONFIG = {
@@ -166,3 +166,12 @@ def test_catch_up_tasks_released_on_skipped_ticks_run_once_at_the_next_tick(catc
     assert ex.profiler.skipped_total == 2
     with pytest.raises(ValueError, match="unknown task"):
         CyclicExecutive(schedule, {t.name: make(t.name) for t in schedule.tasks}, clock, catch_up={"nope"})
+
+
+def test_release_jitter_percentiles_of_a_window():
+    p = Profiler("x", 1_000_000, [])
+    p.start_window(0, 0)
+    for j in [*range(1, 100), 5_000]:  # µs: 1..99 and one 5 ms outlier
+        p.tick_done(j * 1000, 100_000, False, 0)
+    r = p.report(1_000_000_000, 0)
+    assert (r.release_jitter_p50_us, r.release_jitter_p99_us, r.release_jitter_max_us) == (50.0, 99.0, 5000.0)
