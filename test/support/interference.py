@@ -23,22 +23,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
+from stall_probe import StallProbe
 
 ROOT = Path(__file__).resolve().parents[2]
 CRUISE_ALT = 10.0
-PROBE_CODE = """
-import os, sys, time
-try:  # above every node's priority: the probe sees what the platform (VM, host) imposes, not the graph's load
-    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(90))
-except OSError:
-    pass
-window_end, worst = time.monotonic() + 1.0, 0.0
-while True:
-    t = time.monotonic(); time.sleep(0.001); gap = time.monotonic() - t - 0.001
-    worst = max(worst, gap)
-    if time.monotonic() >= window_end:
-        print(f"{time.monotonic():.3f} {worst * 1e3:.2f}", flush=True); window_end += 1.0; worst = 0.0
-"""
 
 
 def square_plan(seconds: float) -> dict:
@@ -50,18 +38,6 @@ def square_plan(seconds: float) -> dict:
     items.append({"type": "land"})
     return {"name": "interference square", "cruise_speed": 3.0, "rtl_altitude": CRUISE_ALT,
             "geofence": {"max_altitude": 30, "max_distance": 100}, "items": items}
-
-
-class StallProbe:
-    """A separate process that sleeps 1 ms at a time and reports its worst oversleep per second."""
-
-    def __init__(self) -> None:
-        self.proc = subprocess.Popen([sys.executable, "-c", PROBE_CODE], stdout=subprocess.PIPE, text=True)
-
-    def stop(self) -> list[tuple[float, float]]:
-        self.proc.send_signal(signal.SIGKILL)
-        out, _ = self.proc.communicate(timeout=10)
-        return [(float(a), float(b)) for a, b in (line.split() for line in out.splitlines() if line.strip())]
 
 
 @dataclass
