@@ -18,13 +18,15 @@ from pathlib import Path
 
 import yaml
 
-from .supervisor import ProcessSpec, RestartPolicy, Supervisor
+from .supervisor import Placement, ProcessSpec, RestartPolicy, Supervisor
 from .system_config import (
     ConfigError,
     SystemConfig,
+    component_argv,
+    group_params_document,
     node_parameters,
     params_document,
-    resolve_executable,
+    resolve_process,
     variables_for,
 )
 
@@ -40,8 +42,9 @@ def new_run_dir(config: SystemConfig, root: str | None = None) -> Path:
 
 
 def resolve_all(config: SystemConfig) -> dict[str, Path]:
-    """Executable of every node (ConfigError naming the first that does not resolve)."""
-    return {node.name: resolve_executable(node) for node in config.nodes}
+    """Executable of every process — a node's own, or the container of a composition group —
+    (ConfigError naming the first that does not resolve)."""
+    return {process.name: resolve_process(process) for process in config.processes()}
 
 
 def prepare_run(config: SystemConfig, run_dir: Path, executables: Mapping[str, Path] | None = None) -> list[ProcessSpec]:
@@ -55,14 +58,22 @@ def prepare_run(config: SystemConfig, run_dir: Path, executables: Mapping[str, P
     except OSError as exc:
         raise ConfigError(f"cannot create the run directory {run_dir}: {exc.strerror or exc}") from None
     specs = []
-    for node in config.nodes:
-        argv = [str(executables[node.name])]
-        if parameters[node.name]:
-            params_file = run_dir / "params" / f"{node.name}.yaml"
-            params_file.write_text(yaml.safe_dump(params_document(parameters[node.name]), sort_keys=False))
+    for process in config.processes():
+        argv = [str(executables[process.name])]
+        names = tuple(n.name for n in process.members)
+        if process.composed:
+            argv += component_argv(process)
+            document = group_params_document({n: parameters[n] for n in names})
+        else:
+            document = params_document(parameters[names[0]]) if parameters[names[0]] else {}
+        if document:
+            params_file = run_dir / "params" / f"{process.name}.yaml"
+            params_file.write_text(yaml.safe_dump(document, sort_keys=False))
             argv += ["--ros-args", "--params-file", str(params_file)]
-        specs.append(ProcessSpec(node.name, tuple(argv), run_dir / "logs" / f"{node.name}.log", node.critical,
-                                 RestartPolicy(node.restart, node.max_restarts, node.restart_window_s, node.backoff_s)))
+        specs.append(ProcessSpec(process.name, tuple(argv), run_dir / "logs" / f"{process.name}.log", process.critical,
+                                 RestartPolicy(process.restart, process.max_restarts, process.restart_window_s,
+                                               process.backoff_s),
+                                 Placement(process.cpu_affinity, process.nice), names if process.composed else ()))
     return specs
 
 
@@ -79,7 +90,8 @@ def run_graph(config: SystemConfig, specs: list[ProcessSpec], env: Mapping[str, 
                             restart_spacing_s=config.restart_spacing_s)
     try:
         supervisor.start()
-        log(f"up: {len(specs)} nodes, logs in {run_dir / 'logs'} (Ctrl-C to stop)")
+        nodes = sum(len(s.members) or 1 for s in specs)
+        log(f"up: {nodes} nodes in {len(specs)} processes, logs in {run_dir / 'logs'} (Ctrl-C to stop)")
         while not signals and supervisor.failure is None:
             supervisor.poll()
             time.sleep(0.1)

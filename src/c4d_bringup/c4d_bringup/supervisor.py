@@ -14,6 +14,11 @@ process that exits (or gives up) marks the supervisor failed, which the caller t
 shutdown. stop(): SIGINT to every group, wait up to the timeout, SIGKILL what is left and any
 stray grandchild of each group.
 
+Placement per process (`Placement`): CPU affinity and niceness are set in the child between
+fork and exec, so every thread the node ever starts inherits them. A niceness below the
+supervisor's own that this user may not set (no CAP_SYS_NICE, RLIMIT_NICE too low) is a logged
+fallback: the process runs at the inherited niceness and the log says why.
+
 No ROS here: the children are plain argv lists. Single-threaded by design (poll() from one
 loop) — `preexec_fn` is only safe in a process without other threads, which the `c4d up`
 process is.
@@ -34,6 +39,64 @@ from pathlib import Path
 
 PR_SET_PDEATHSIG = 1
 MAX_BACKOFF_S = 10.0
+CAP_SYS_NICE = 23  # bit in /proc/<pid>/status CapEff
+
+
+def has_capability(bit: int) -> bool:
+    """Whether this process has the Linux capability `bit` in its effective set."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("CapEff:"):
+                return bool(int(line.split()[1], 16) >> bit & 1)
+    except (OSError, ValueError):
+        pass
+    return False
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where and how eagerly a child runs: CPU ids it may use and its niceness (None: inherited).
+    Why: on a small board the core gets a CPU of its own and best-effort nodes yield to the rest."""
+
+    cpu_affinity: tuple[int, ...] | None = None
+    nice: int | None = None
+
+    def nice_refusal(self) -> str | None:
+        """Why `nice` cannot be applied by this process (None: it can). Raising one's niceness is
+        always allowed; lowering it needs CAP_SYS_NICE or an RLIMIT_NICE of at least 20 - nice."""
+        if self.nice is None:
+            return None
+        current = os.getpriority(os.PRIO_PROCESS, 0)
+        if self.nice >= current or has_capability(CAP_SYS_NICE):
+            return None
+        import resource
+
+        limit = resource.getrlimit(resource.RLIMIT_NICE)[0]
+        if limit == resource.RLIM_INFINITY or 20 - self.nice <= limit:
+            return None
+        return (f"nice {self.nice} not permitted (below the current {current}: needs CAP_SYS_NICE or RLIMIT_NICE >= "
+                f"{20 - self.nice}, is {limit}); running at nice {current}")
+
+    def describe(self) -> str:
+        parts = []
+        if self.cpu_affinity is not None:
+            parts.append(f"CPUs {','.join(map(str, self.cpu_affinity))}")
+        if self.nice is not None:
+            parts.append(f"nice {self.nice}")
+        return ", ".join(parts)
+
+    def child_setup(self, apply_nice: bool) -> Callable[[], None]:
+        """The function run in the child between fork and exec (no Python threads there)."""
+        def setup() -> None:
+            _pdeathsig()
+            try:
+                if self.cpu_affinity is not None:
+                    os.sched_setaffinity(0, self.cpu_affinity)
+                if self.nice is not None and apply_nice:
+                    os.setpriority(os.PRIO_PROCESS, 0, self.nice)
+            except OSError as exc:  # into the node's log (fd 2 is the log file here); it still starts
+                os.write(2, f"c4d: placement {self.describe()} not applied: {exc}\n".encode())
+        return setup
 
 
 @dataclass(frozen=True)
@@ -54,6 +117,8 @@ class ProcessSpec:
     log_path: Path
     critical: bool = False
     restart: RestartPolicy = RestartPolicy()
+    placement: Placement = Placement()
+    members: tuple[str, ...] = ()  # the ROS nodes of a composed process (empty: the process is one node)
 
 
 @dataclass
@@ -123,13 +188,17 @@ class Supervisor:
     def _spawn(self, child: _Child) -> None:
         spec = child.spec
         spec.log_path.parent.mkdir(parents=True, exist_ok=True)
+        refusal = spec.placement.nice_refusal()
+        if refusal and child.starts == 0:
+            self.log(f"{spec.name}: {refusal}")
         with open(spec.log_path, "ab") as out:
             out.write(f"--- c4d: start #{child.starts + 1} {time.strftime('%Y-%m-%d %H:%M:%S')}: "
                       f"{' '.join(spec.argv)}\n".encode())
             out.flush()
             try:
                 child.proc = subprocess.Popen(spec.argv, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                              env=self.env, start_new_session=True, preexec_fn=_pdeathsig)
+                                              env=self.env, start_new_session=True,
+                                              preexec_fn=spec.placement.child_setup(apply_nice=refusal is None))
             except OSError as exc:
                 child.proc = None
                 child.last_exit = 127
@@ -139,7 +208,9 @@ class Supervisor:
         child.starts += 1
         child.restart_at = None
         child.deferred = False
-        self.log(f"{spec.name}: started (pid {child.proc.pid})" if child.starts == 1 else
+        where = spec.placement.describe()
+        where = f", {where}" if where else ""
+        self.log(f"{spec.name}: started (pid {child.proc.pid}{where})" if child.starts == 1 else
                  f"{spec.name}: restarted (pid {child.proc.pid}, restart {len(child.restarts)}/{spec.restart.max_restarts})")
 
     def poll(self) -> None:
@@ -223,7 +294,8 @@ class Supervisor:
     def state(self) -> dict:
         return {"failure": self.failure, "stopping": self.stopping, "nodes": {
             n: {"pid": self.pid(n), "starts": c.starts, "restarts": self.restart_count(n), "last_exit": c.last_exit,
-                "gave_up": c.gave_up, "critical": c.spec.critical, "log": str(c.spec.log_path)}
+                "gave_up": c.gave_up, "critical": c.spec.critical, "log": str(c.spec.log_path),
+                "members": list(c.spec.members or (n,))}
             for n, c in self.children.items()}}
 
     def _write_state(self) -> None:
