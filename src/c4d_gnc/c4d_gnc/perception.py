@@ -125,6 +125,12 @@ class ImuCalibration:
     accel_offset: Vec = (0.0, 0.0, 0.0)
     accel_scale: Vec = (1.0, 1.0, 1.0)
 
+    @property
+    def identity(self) -> bool:
+        """True when apply() returns its input unchanged (a node may forward the sample as it came)."""
+        zero = (0.0, 0.0, 0.0)
+        return self.gyro_offset == zero and self.accel_offset == zero and self.accel_scale == (1.0, 1.0, 1.0)
+
     def apply(self, gyro: Vec, accel: Vec) -> tuple[Vec, Vec]:
         g = tuple(gyro[k] - self.gyro_offset[k] for k in range(3))
         a = tuple((accel[k] - self.accel_offset[k]) * self.accel_scale[k] for k in range(3))
