@@ -103,6 +103,8 @@ class GraphReader:
 def expected_lines(with_depth: bool) -> list[str]:
     out: set[str] = set()
     for t in MANIFEST.topics:
+        if t.lockstep_only:  # the bundled YAML runs in real time
+            continue
         name = absolute(t.name)
         out.add(f"topic {name}: type {t.type}")
         out.add(f"topic {name}: producers {', '.join(sorted(t.producers))}")

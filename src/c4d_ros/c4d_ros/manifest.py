@@ -31,6 +31,7 @@ class Topic:
     consumers: tuple[str, ...]
     about: str = ""
     recorded: bool = True  # the recorder subscribes (default configuration)
+    lockstep_only: bool = False  # exists only in lockstep mode (system YAML `lockstep: true`)
 
     @property
     def qos(self) -> QoSProfile:
@@ -80,6 +81,10 @@ GROUND_TRUTH = Topic("sim/ground_truth", "nav_msgs/msg/Odometry", S, "100 Hz", (
 ACTUATOR_LINK = Topic("sim/actuator_link", "diagnostic_msgs/msg/DiagnosticStatus", STATS, "1 Hz", ("sim",), (),
                       "the sim's diagnostics: gaps in control/actuators as the vehicle received them (worst, p99.9, "
                       "> 20 ms) and IMU samples published late / dropped after stalls (tests, bench)")
+CLOCK = Topic("clock", "rosgraph_msgs/msg/Clock", ST, "lockstep only: per step (500 Hz simulated)", ("sim",),
+              ("core", "perception", "navigation", "mission", "payload", "health", "bridge"),
+              "simulated time in lockstep mode (the core's tick; `use_sim_time` of the other nodes); absent in real time",
+              recorded=False, lockstep_only=True)
 # --- perception ---------------------------------------------------------------------------
 P_IMU = Topic("perception/imu", "sensor_msgs/msg/Imu", Profile.IMU, "500 Hz", ("perception",), ("navigation", "core"),
               "validated, calibrated; the core takes the gyro")
@@ -128,7 +133,7 @@ RECORDER_STATUS = Topic("recorder/status", "diagnostic_msgs/msg/DiagnosticStatus
                         (), "state, file, written, dropped; the c4d CLI and tests")
 
 TOPICS: tuple[Topic, ...] = (
-    IMU, GPS, BARO, MAG, RANGE_DOWN, BATTERY, GROUND_TRUTH, ACTUATOR_LINK,
+    IMU, GPS, BARO, MAG, RANGE_DOWN, BATTERY, GROUND_TRUTH, ACTUATOR_LINK, CLOCK,
     P_IMU, P_GPS, P_BARO, P_MAG, P_RANGE_DOWN, P_HEALTH,
     NAV_STATE, NAV_ODOMETRY,
     SETPOINT, ACTUATORS, STATUS, EXECUTOR_STATS, SCHEDULE,

@@ -81,8 +81,10 @@ class Simulation:
         self.extra_gust = 0.0  # [m/s] fault: added to the configured gust amplitude
         self.outputs: list[float] = [0.0] * self.motors
         self.armed = False
-        self.command_t = -math.inf  # monotonic time of the last motor command
+        self.command_t = -math.inf  # time of the last motor command on `now`
+        self.now: Callable[[], float] = time.monotonic  # clock of the ESC timeout; simulated time in lockstep
         self.wall_epoch = 0.0  # wall-clock time of simulated t = 0, fixed at the first physics tick
+        self.anchor_epoch = True  # False (lockstep): stamps are simulated time + wall_epoch as set by the node
         self.gps_pending: deque[GpsSample] = deque()  # measured, waiting for the GNSS latency
         self._tick0_ns = tick0_ns
         self._dt = 1.0 / config.physics_rate_hz
@@ -94,15 +96,15 @@ class Simulation:
     def command(self, outputs: Sequence[float], armed: bool) -> None:
         """A motor command (one output per motor in [0, 1]); ignored when the count is wrong."""
         if len(outputs) == self.motors:
-            self.outputs, self.armed, self.command_t = list(outputs), armed, time.monotonic()
+            self.outputs, self.armed, self.command_t = list(outputs), armed, self.now()
 
     def physics(self, k: int) -> None:
         """Executive task: advance the plant to tick k (ticks skipped after a stall are simulated too),
         sampling the IMU at each IMU period of the steps (stamps on the IMU's own 1/rate grid)."""
         plant, cfg = self.plant, self.config
-        if self._last_tick < 0:  # anchor simulated t = 0 to the wall-clock time of tick 0's deadline
+        if self._last_tick < 0 and self.anchor_epoch:  # anchor simulated t = 0 to the wall-clock time of tick 0's deadline
             self.wall_epoch = time.time() - (time.monotonic_ns() - (self._tick0_ns() or 0)) / 1e9 - plant.state.t
-        fresh = time.monotonic() - self.command_t < ESC_TIMEOUT_S
+        fresh = self.now() - self.command_t < ESC_TIMEOUT_S
         gust = (cfg.gust + self.extra_gust) * 0.5 * (1 - math.cos(2 * math.pi * plant.state.t / cfg.gust_period))
         plant.wind = (cfg.wind_mean[0] + gust, cfg.wind_mean[1], cfg.wind_mean[2])
         imu_dt = self._dt * self._imu_divider
