@@ -71,6 +71,16 @@ def test_defaults_flattening_and_substitution():
     assert parse({"restart_spacing_s": 0, "nodes": {"sim": {}}}).restart_spacing_s == 0.0  # no stagger
 
 
+def test_lockstep_puts_the_graph_on_simulated_time():
+    doc = {"lockstep": True, "nodes": {"sim": {}, "core": {"parameters": {"lockstep": False, "rt_priority": 60}},
+                                       "mission": {}}}
+    config = parse(doc)
+    assert config.node("sim").parameters == {"lockstep": True}
+    assert config.node("core").parameters == {"lockstep": True, "rt_priority": 60}  # the top-level switch wins
+    assert config.node("mission").parameters == {"use_sim_time": True}
+    assert parse({**doc, "lockstep": False}).node("core").parameters == {"lockstep": False, "rt_priority": 60}
+
+
 def test_child_environment_forces_discovery_range_and_keeps_domain():
     config = parse({"nodes": {"sim": {}}})
     env = child_environment(config, {"ROS_DOMAIN_ID": "42", "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "X": "1"})
@@ -100,6 +110,8 @@ def test_child_environment_forces_discovery_range_and_keeps_domain():
     ({"nodes": {"sim": {"enabled": False}}}, "every node is disabled"),
     ({"restart_spacing_s": -1, "nodes": {"sim": {}}}, "restart_spacing_s must be a number >= 0"),
     ({"restart_spacing_s": 61, "nodes": {"sim": {}}}, "restart_spacing_s must be <= 60 s"),
+    ({"lockstep": "yes", "nodes": {"sim": {}}}, "lockstep must be true or false, not 'yes'"),
+    ({"lockstep": True, "platform": "hardware", "nodes": {"core": {}}}, "lockstep needs platform sitl"),
 ])
 def test_bad_configs_are_one_line_errors(doc, expected):
     assert expected in error_of(doc)

@@ -9,6 +9,8 @@ same processes with the same parameters. Format (the bundled config/sitl.yaml is
     run_root: c4d_runs             # each run writes <run_root>/<UTC stamp>/ (logs, params, flights, captures, report)
     shutdown_timeout_s: 10         # SIGINT, then SIGKILL after this long
     restart_spacing_s: 2.0         # at least this long between any two (re)starts: restarts are staggered
+    lockstep: false                # true: simulated time advances only when the core answered each step (sim and core
+                                   # get lockstep: true, every other node use_sim_time: true; docs/sim.md)
     compose:                       # optional: several nodes in one process (one executor), by group name
       ground: [mission, payload, health, bridge, recorder]      # short form, or the long form:
       sensing: {nodes: [perception, navigation], cpu_affinity: ["0..-2"], nice: 0}
@@ -46,7 +48,7 @@ import math
 import os
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -71,7 +73,9 @@ CATALOGUE: dict[str, tuple[str, str, bool]] = {
 PLATFORMS = ("sitl", "hardware")
 RESTART_MODES = ("never", "on-failure", "always")
 DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT", "OFF")
-TOP_KEYS = {"platform", "discovery_range", "run_root", "shutdown_timeout_s", "restart_spacing_s", "compose", "nodes"}
+TOP_KEYS = {"platform", "discovery_range", "run_root", "shutdown_timeout_s", "restart_spacing_s", "compose", "nodes",
+            "lockstep"}
+LOCKSTEP_NODES = ("sim", "core")  # they take `lockstep: true`; every other node follows /clock (use_sim_time)
 RESTART_SPACING_S = 2.0  # default: a DDS participant's discovery burst is over well within 2 s on localhost
 NODE_KEYS = {"package", "executable", "critical", "restart", "max_restarts", "restart_window_s", "backoff_s",
              "enabled", "cpu_affinity", "nice", "parameters"}
@@ -274,6 +278,7 @@ def parse_system_config(doc: Any, path: Path, cpus: frozenset[int] | None = None
         node = _parse_node(name, entry, w, cpus)
         if node is not None:
             nodes.append(node)
+    nodes = _lockstep(doc.get("lockstep", False), nodes, platform, w)
     groups = _parse_groups(doc.get("compose"), nodes_doc, {n.name: n for n in nodes}, w, cpus)
     if not nodes:
         raise ConfigError(f"{w}: every node is disabled")
@@ -283,6 +288,18 @@ def parse_system_config(doc: Any, path: Path, cpus: frozenset[int] | None = None
     if platform == "hardware" and "sim" in names:
         raise ConfigError(f"{w}: platform hardware must not run the 'sim' node")
     return SystemConfig(path.resolve(), platform, discovery, run_root, timeout, tuple(nodes), spacing, groups)
+
+
+def _lockstep(value: Any, nodes: list[NodeConfig], platform: str, w: str) -> list[NodeConfig]:
+    """`lockstep: true`: the parameters that put the graph on simulated time (they win over the nodes' own)."""
+    if not isinstance(value, bool):
+        raise ConfigError(f"{w}: lockstep must be true or false, not {value!r}")
+    if not value:
+        return nodes
+    if platform != "sitl":
+        raise ConfigError(f"{w}: lockstep needs platform sitl (the sim drives simulated time)")
+    return [replace(n, parameters={**n.parameters, **({"lockstep": True} if n.name in LOCKSTEP_NODES
+                                                      else {"use_sim_time": True})}) for n in nodes]
 
 
 def _parse_groups(doc: Any, nodes_doc: dict, enabled: dict[str, NodeConfig], w: str,
