@@ -17,5 +17,6 @@ setup(
     maintainer_email="maintainers@c4d.dev",
     description="c4d MAVLink 2 ground-station bridge with GCD+-scheduled telemetry",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["bridge = c4d_bridge_mavlink.bridge_node:main"]},
+    entry_points={"console_scripts": ["bridge = c4d_bridge_mavlink.bridge_node:main"],
+                  "c4d.components": ["bridge = c4d_bridge_mavlink.bridge_node:component"]},
 )

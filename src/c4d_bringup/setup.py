@@ -20,5 +20,5 @@ setup(
     maintainer_email="maintainers@c4d.dev",
     description="c4d bring-up: the c4d CLI (up, fly, status) and launch files",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["c4d = c4d_bringup.cli:main"]},
+    entry_points={"console_scripts": ["c4d = c4d_bringup.cli:main", "container = c4d_bringup.container:main"]},
 )

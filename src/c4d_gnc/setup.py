@@ -25,6 +25,10 @@ setup(
             "core = c4d_gnc.core_node:main",
             "perception = c4d_gnc.perception_node:main",
             "navigation = c4d_gnc.navigation_node:main",
-        ]
+        ],
+        "c4d.components": [  # composable (c4d_ros.component); core runs alone: its own real-time loop
+            "perception = c4d_gnc.perception_node:component",
+            "navigation = c4d_gnc.navigation_node:component",
+        ],
     },
 )

@@ -17,5 +17,6 @@ setup(
     maintainer_email="maintainers@c4d.dev",
     description="c4d health monitors, diagnostics and failsafe policy",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["health = c4d_health.health_node:main"]},
+    entry_points={"console_scripts": ["health = c4d_health.health_node:main"],
+                  "c4d.components": ["health = c4d_health.health_node:component"]},
 )

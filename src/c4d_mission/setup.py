@@ -20,6 +20,10 @@ setup(
         "console_scripts": [
             "mission = c4d_mission.mission_node:main",
             "payload = c4d_mission.payload_node:main",
-        ]
+        ],
+        "c4d.components": [
+            "mission = c4d_mission.mission_node:component",
+            "payload = c4d_mission.payload_node:component",
+        ],
     },
 )

@@ -16,7 +16,6 @@ bridge/link_stats (diagnostic_msgs/DiagnosticArray, 1 Hz).
 
 from __future__ import annotations
 
-import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -27,6 +26,7 @@ import yaml
 
 from c4d_common.airframe import AirframeError, default_airframe_path, load_airframe
 from c4d_common.share import share_file
+from c4d_ros.component import ComponentError, Host, run_components
 from c4d_ros.params import ParameterError, Spec, declare_all
 
 from . import encoders as enc
@@ -146,6 +146,7 @@ class BridgeNode:
         try:
             self.router = Router(list(settings.urls), sysid=self.sysid, signing=settings.signing)
         except ValueError as exc:
+            self.ros.executor.shutdown()  # before the context goes: no traceback from its finalizer
             raise SettingsError(str(exc)) from None
         self.monitor = LinkMonitor(self.params.get("COM_DL_LOSS_T"))
         self.missions = MissionServer(self._send, on_upload=self.ros.upload_mission, on_clear=self.ros.clear_mission,
@@ -174,24 +175,26 @@ class BridgeNode:
             schedulers[name] = sched
         return schedulers
 
-    def run(self) -> None:
-        """Loop until SIGINT / SIGTERM (or ROS shutdown), then close the endpoints and the ROS side."""
-        import rclpy
+    # c4d_ros.component protocol: the bridge spins its own node (a private executor, spin_once(0)
+    # per step) and polls its sockets, so a shared process's executor does not spin it
+    name = "bridge"
+    nodes: tuple = ()
+    events_executor = False
+    rt_priority = 0
+    period_s = 0.004  # [s] socket poll and telemetry granularity
 
-        stopping: list[int] = []
-        signal.signal(signal.SIGINT, lambda s, f: stopping.append(s))
-        signal.signal(signal.SIGTERM, lambda s, f: stopping.append(s))
-        try:
-            while not stopping and rclpy.ok():
-                self.step()
-        finally:
-            self.router.close()
-            self.ros.shutdown()
+    def close(self) -> int:
+        """Close the endpoints and the ROS side (its executor and node; the rclpy context is the runner's)."""
+        self.router.close()
+        self.ros.shutdown()
+        return 0
 
-    def step(self) -> None:
+    def step(self, budget_s: float = 0.004) -> None:
+        """One loop pass: ROS callbacks, MAVLink input (waiting at most `budget_s` for it, less when a
+        telemetry frame is due sooner), telemetry out, protocol time-outs, link statistics."""
         self.ros.spin_once()
         now = time.monotonic()
-        wait = min([max(0.0, s.next_event() - now) for s in self.schedulers.values()] + [0.004])
+        wait = min([max(0.0, s.next_event() - now) for s in self.schedulers.values()] + [budget_s])
         for received in self.router.poll(wait):
             self.on_message(received)
         now = time.monotonic()
@@ -267,17 +270,19 @@ class BridgeNode:
         return encode(self.snap, time.monotonic()) if encode else None
 
 
-def main(argv: list[str] | None = None) -> int:
-    from c4d_ros import node_runtime
-
-    rclpy = node_runtime.init(argv)
+def component(rclpy, host: Host) -> BridgeNode:
+    """The bridge as a component (c4d_ros.component): alone (its step waits on the sockets) or
+    composed with others (stepped every 4 ms by the shared loop, without waiting)."""
     node = rclpy.create_node("bridge")
     try:
-        bridge = BridgeNode(node, BridgeSettings.from_parameters(declare_all(node, PARAMETERS)))
+        return BridgeNode(node, BridgeSettings.from_parameters(declare_all(node, PARAMETERS)))
     except (ParameterError, SettingsError) as exc:
-        return node_runtime.fail("bridge", str(exc), node)
-    bridge.run()
-    return 0
+        node.destroy_node()
+        raise ComponentError(str(exc)) from None
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_components([("bridge", component)], argv, "bridge", composed=False)
 
 
 if __name__ == "__main__":

@@ -139,11 +139,9 @@ class RosSide:
                     self.pending_params.remove((spec, value))
 
     def shutdown(self) -> None:
+        """Stop the private executor and destroy the node; the rclpy context is the process runner's."""
         self.executor.shutdown()
         self.node.destroy_node()
-        import rclpy
-
-        rclpy.try_shutdown()
 
     # ------------------------------------------------------------------ topics in
     def _on_status(self, msg) -> None:

@@ -27,6 +27,7 @@ from std_srvs.srv import Trigger
 
 from c4d_interfaces.msg import VehicleStatus
 from c4d_ros import manifest
+from c4d_ros.component import ComponentError, Host, run_components
 from c4d_ros.drain import Drainer
 from c4d_ros.params import ParameterError, Spec, declare_all
 
@@ -74,12 +75,15 @@ class RecorderNode:
     publishers, drains them with non-blocking takes into `recording.Recorder`, feeds it the armed
     flag of the status topic, serves recorder/start and recorder/stop and publishes recorder/status."""
 
-    def __init__(self, node, settings: RecorderSettings) -> None:
-        if settings.niceness:  # before the writer thread starts: it inherits the priority
-            os.nice(settings.niceness)
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a file-size limit must surface as EFBIG, not kill us
+    def __init__(self, node, settings: RecorderSettings, own_process: bool = True) -> None:
         self.node, self.settings = node, settings
         self.logger = node.get_logger()
+        if settings.niceness and own_process:  # before the writer thread starts: it inherits the priority
+            os.nice(settings.niceness)
+        elif settings.niceness:  # the niceness of a shared process is the system YAML's (compose group `nice`)
+            self.log("info", f"niceness {settings.niceness} not applied: the recorder shares its process with other "
+                             "nodes (set nice on the compose group in the system YAML)")
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a file-size limit must surface as EFBIG, not kill us
         self.recorder = Recorder(settings.recording, self.log)
         self.definitions = DefinitionCache()
         self.status_topic = node.resolve_topic_name(settings.status_topic)
@@ -93,7 +97,9 @@ class RecorderNode:
         self.pub_status = node.create_publisher(DiagnosticStatus, manifest.RECORDER_STATUS.name, manifest.RECORDER_STATUS.qos)
         self.last_status: dict[str, Any] | None = None  # as last published
         self.last_status_time = 0.0  # [s] monotonic
-        self.stopping = False
+        self.next_discovery = 0.0  # [s] monotonic
+        self.log("info", f"recording into {settings.recording.output_dir} "
+                         f"({'on arm/disarm of ' + self.status_topic if settings.auto_arm else 'manual'})")
 
     def log(self, level: str, text: str) -> None:  # one call site per severity (rclpy's logger insists)
         if level == "info":
@@ -187,63 +193,56 @@ class RecorderNode:
         s = self.recorder.status()
         return bool(last) and (s["state"], s["files"], s["error"]) != (last["state"], last["files"], last["error"])
 
-    def run(self, stop_signals: list[int] | None = None) -> int:
-        """Discover, drain, poll until SIGINT/SIGTERM; close the file; 1 if a write failed, else 0.
-        `stop_signals`: the list main()'s early handlers append to (a stop that came during start-up
-        ends the run at once, cleanly)."""
-        import rclpy
+    # c4d_ros.component protocol: the recorder drains its node itself (no executor spins it)
+    name = "recorder"
+    nodes: tuple = ()
+    events_executor = False
+    rt_priority = 0
 
-        if stop_signals:
-            self.stopping = True
-        signal.signal(signal.SIGINT, self.stop)
-        signal.signal(signal.SIGTERM, self.stop)
-        settings = self.settings
-        self.log("info", f"recording into {settings.recording.output_dir} "
-                         f"({'on arm/disarm of ' + self.status_topic if settings.auto_arm else 'manual'})")
-        next_discovery = 0.0
-        try:
-            while not self.stopping and rclpy.ok():
-                now = time.monotonic()
-                if now >= next_discovery:
-                    self.discover()
-                    next_discovery = now + settings.discovery_period_s
-                self.drain()
-                self.drainer.drain()
-                self.recorder.poll()
-                if self.status_due(now):
-                    self.publish_status()
-                time.sleep(settings.drain_period_s)
-        finally:
-            self.drain()
-            self.recorder.shutdown()
-            if self.recorder.state == IDLE and self.last_status is not None:
-                self.publish_status()
-            self.node.destroy_node()
-            rclpy.try_shutdown()
+    @property
+    def period_s(self) -> float:
+        return self.settings.drain_period_s
+
+    def step(self, budget_s: float = 0.0) -> None:
+        """Discover (every discovery_period_s), drain, poll the writer, publish the status when due;
+        then sleep `budget_s` (the drain period when the recorder has its process to itself)."""
+        now = time.monotonic()
+        if now >= self.next_discovery:
+            self.discover()
+            self.next_discovery = now + self.settings.discovery_period_s
+        self.drain()
+        self.drainer.drain()
+        self.recorder.poll()
+        if self.status_due(now):
+            self.publish_status()
+        if budget_s > 0:
+            time.sleep(budget_s)
+
+    def close(self) -> int:
+        """Take what is still queued, close the file, say so; 1 if a write failed, else 0."""
+        self.drain()
+        self.recorder.shutdown()
+        if self.recorder.state == IDLE and self.last_status is not None:
+            self.publish_status()
+        self.node.destroy_node()
         return 1 if self.recorder.last_error else 0
 
-    def stop(self, signum: int, frame: Any) -> None:
-        self.stopping = True
+
+def component(rclpy, host: Host) -> RecorderNode:
+    """The recorder as a component (c4d_ros.component). Stop requests are caught by the runner
+    from before rclpy starts: a SIGINT during start-up (rclpy and DDS initialising, the writer
+    thread starting) used to raise KeyboardInterrupt wherever it landed — an unclean exit, and a
+    possible hang tearing down a half-built DDS participant (issue 14 item 15)."""
+    node = rclpy.create_node("recorder")
+    try:
+        return RecorderNode(node, read_settings(node), own_process=not host.composed)
+    except (ParameterError, ValueError, OSError) as exc:
+        node.destroy_node()
+        raise ComponentError(str(exc)) from None
 
 
 def main(argv: list[str] | None = None) -> int:
-    from c4d_ros import node_runtime
-
-    # Stop requests are caught from here on, not only once the loop runs: a SIGINT during start-up
-    # (rclpy and DDS initialising, the writer thread starting) used to raise KeyboardInterrupt
-    # wherever it landed — an unclean exit, and a possible hang tearing down a half-built DDS
-    # participant, the SIGKILL the supervisor then needs (issue 14 item 15).
-    early: list[int] = []
-    signal.signal(signal.SIGINT, lambda signum, frame: early.append(signum))
-    signal.signal(signal.SIGTERM, lambda signum, frame: early.append(signum))
-    rclpy = node_runtime.init(argv)
-    node = rclpy.create_node("recorder")
-    try:
-        recorder = RecorderNode(node, read_settings(node))
-    except (ParameterError, ValueError, OSError) as exc:
-        return node_runtime.fail("recorder", str(exc), node)
-    return recorder.run(early)
-
+    return run_components([("recorder", component)], argv, "recorder", composed=False)
 
 if __name__ == "__main__":
     sys.exit(main())

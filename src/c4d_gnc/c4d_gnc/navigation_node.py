@@ -23,6 +23,7 @@ from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, Range
 
 from c4d_interfaces.msg import VehicleState, VehicleStatus
 from c4d_ros import node_runtime
+from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.manifest import NAV_ODOMETRY, NAV_STATE, P_BARO, P_GPS, P_IMU, P_MAG, P_RANGE_DOWN, STATUS
 from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.stamps import stamp_to_s
@@ -145,15 +146,20 @@ class NavigationNode:
             f"heading valid {ekf.heading_valid}, rejected {ekf.rejected}, p = {[round(float(x), 2) for x in ekf.p]}")
 
 
-def main(argv: list[str] | None = None) -> int:
-    rclpy = node_runtime.init(argv)
+def component(rclpy, host: Host) -> SpunNode:
+    """The navigation node as a component (c4d_ros.component): alone or composed with others."""
     node = rclpy.create_node(NAME)
     try:
         params = declare_all(node, PARAMS)
     except ParameterError as exc:
-        return node_runtime.fail(NAME, str(exc), node)
-    NavigationNode(node, params["odometry_rate_hz"], params["mag_declination_deg"])
-    return node_runtime.spin_node(node, params["events_executor"], rt_priority=params["rt_priority"])
+        node.destroy_node()
+        raise ComponentError(str(exc)) from None
+    owner = NavigationNode(node, params["odometry_rate_hz"], params["mag_declination_deg"])
+    return SpunNode(NAME, node, bool(params["events_executor"]), params["rt_priority"], owner)
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_components([(NAME, component)], argv, NAME, composed=False)
 
 
 if __name__ == "__main__":

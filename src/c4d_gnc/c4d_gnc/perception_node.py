@@ -18,6 +18,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
 
 from c4d_ros import node_runtime
+from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.manifest import BARO, GPS, IMU, MAG, P_BARO, P_GPS, P_HEALTH, P_IMU, P_MAG, P_RANGE_DOWN, RANGE_DOWN, Topic
 from c4d_ros.params import ParameterError, Spec, declare_all
 
@@ -133,16 +134,20 @@ class PerceptionNode:
         self.pub_health.publish(array)
 
 
-def main(argv: list[str] | None = None) -> int:
-    rclpy = node_runtime.init(argv)
+def component(rclpy, host: Host) -> SpunNode:
+    """The perception node as a component (c4d_ros.component): alone or composed with others."""
     node = rclpy.create_node(NAME)
     try:
         params = declare_all(node, PARAMS)
         calibration = calibration_from(params)
     except ParameterError as exc:
-        return node_runtime.fail(NAME, str(exc), node)
-    PerceptionNode(node, calibration)
-    return node_runtime.spin_node(node, bool(params["events_executor"]), rt_priority=params["rt_priority"])
+        node.destroy_node()
+        raise ComponentError(str(exc)) from None
+    return SpunNode(NAME, node, bool(params["events_executor"]), params["rt_priority"], PerceptionNode(node, calibration))
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_components([(NAME, component)], argv, NAME, composed=False)
 
 
 if __name__ == "__main__":

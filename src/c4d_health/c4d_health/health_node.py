@@ -35,6 +35,7 @@ from c4d_common.vehicle import CommandResult, Landed
 from c4d_interfaces.msg import ExecutorStats, MissionPlan, MissionState, VehicleState, VehicleStatus
 from c4d_interfaces.srv import VehicleCommand
 from c4d_ros import manifest
+from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.drain import LatestSampler
 from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.plan_msgs import plan_from_msg
@@ -253,17 +254,20 @@ class HealthNode:
         self.pub_diagnostics.publish(array)
 
 
-def main(argv: list[str] | None = None) -> int:
-    from c4d_ros import node_runtime
-
-    rclpy = node_runtime.init(argv)
+def component(rclpy, host: Host) -> SpunNode:
+    """The health node as a component (c4d_ros.component): alone or composed with others."""
     node = rclpy.create_node(NAME)
     try:
         config = HealthConfig.declare(node)
     except (ParameterError, PolicyError) as exc:
-        return node_runtime.fail(NAME, str(exc), node)
-    HealthNode(node, rclpy.create_node(manifest.side_node_name(NAME)), config)
-    return node_runtime.spin_node(node, events_executor=False)
+        node.destroy_node()
+        raise ComponentError(str(exc)) from None
+    side = rclpy.create_node(manifest.side_node_name(NAME))
+    return SpunNode(NAME, node, False, 0, HealthNode(node, side, config), (side,))
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_components([(NAME, component)], argv, NAME, composed=False)
 
 
 if __name__ == "__main__":

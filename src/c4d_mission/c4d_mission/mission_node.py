@@ -51,7 +51,7 @@ from c4d_common.vehicle import (
 from c4d_interfaces.msg import GuidanceSetpoint, MissionPlan, MissionState, VehicleState, VehicleStatus
 from c4d_interfaces.srv import DownloadMission, MissionControl, UploadMission, VehicleCommand
 from c4d_ros import manifest as m
-from c4d_ros import node_runtime
+from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.drain import LatestSampler
 from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.plan_msgs import plan_from_msg, plan_to_msg
@@ -365,14 +365,22 @@ def setpoint_msg(t: float, position: tuple[float, float, float], velocity: tuple
     return sp
 
 
-def main(argv: list[str] | None = None) -> int:
-    rclpy = node_runtime.init(argv)
+def component(rclpy, host: Host) -> SpunNode:
+    """The mission node as a component (c4d_ros.component): alone or composed with others. Its
+    executor is the SingleThreadedExecutor: the vehicle/command service is a coroutine."""
     node = rclpy.create_node("mission")
+    side = rclpy.create_node(m.side_node_name("mission"))
     try:
-        MissionNode(node, rclpy.create_node(m.side_node_name("mission")), **declare_all(node, PARAMETERS))
+        owner = MissionNode(node, side, **declare_all(node, PARAMETERS))
     except ParameterError as err:
-        return node_runtime.fail("mission", str(err), node)
-    return node_runtime.spin_node(node, events_executor=False)
+        side.destroy_node()
+        node.destroy_node()
+        raise ComponentError(str(err)) from None
+    return SpunNode("mission", node, False, 0, owner, (side,))
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_components([("mission", component)], argv, "mission", composed=False)
 
 
 if __name__ == "__main__":

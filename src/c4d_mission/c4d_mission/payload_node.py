@@ -24,7 +24,7 @@ from c4d_common.plan import Plan, PlanError
 from c4d_common.vehicle import MissionStatus
 from c4d_interfaces.msg import CaptureEvent, MissionPlan, MissionState, VehicleState, VehicleStatus
 from c4d_ros import manifest as m
-from c4d_ros import node_runtime
+from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.plan_msgs import plan_from_msg
 
@@ -116,15 +116,19 @@ class PayloadNode:
             self.log.add(c, stamp_s(msg.header.stamp), lat, lon, alt, event.file_name)
 
 
-def main(argv: list[str] | None = None) -> int:
-    rclpy = node_runtime.init(argv)
+def component(rclpy, host: Host) -> SpunNode:
+    """The payload node as a component (c4d_ros.component): alone or composed with others."""
     node = rclpy.create_node("payload")
     try:
         values = declare_all(node, PARAMETERS)
     except ParameterError as err:
-        return node_runtime.fail("payload", str(err), node)
-    PayloadNode(node, Path(values["output_dir"]))
-    return node_runtime.spin_node(node, bool(values["events_executor"]))
+        node.destroy_node()
+        raise ComponentError(str(err)) from None
+    return SpunNode("payload", node, bool(values["events_executor"]), 0, PayloadNode(node, Path(values["output_dir"])))
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_components([("payload", component)], argv, "payload", composed=False)
 
 
 if __name__ == "__main__":
