@@ -244,3 +244,179 @@ def test_cli_help_and_wrapper(tmp_path):
     for command in ("up", "fly", "status"):
         done = run_c4d(command, "--help", cwd=tmp_path)
         assert done.returncode == 0 and "--config" in done.stdout
+
+
+# ---------------------------------------------------------------- deployment: composition, CPU affinity, nice (issue 16)
+BOARD = ROOT / "src" / "c4d_bringup" / "config" / "board.yaml"
+FOUR = frozenset({0, 1, 2, 3})
+
+
+def parse_on(doc, cpus=FOUR) -> object:
+    return parse_system_config(doc, Path("/cfg/system.yaml"), cpus=cpus)
+
+
+def test_cpu_affinity_ids_negative_ids_and_ranges():
+    sim = parse_on({"nodes": {"sim": {"cpu_affinity": ["0..-2"], "nice": 5}, "core": {"cpu_affinity": [-1]}}}).nodes
+    assert (sim[0].cpu_affinity, sim[0].nice, sim[1].cpu_affinity, sim[1].nice) == ((0, 1, 2), 5, (3,), None)
+    two = parse_on({"nodes": {"sim": {"cpu_affinity": ["0..-2"]}, "core": {"cpu_affinity": [-1]}}}, frozenset({0, 1}))
+    assert [n.cpu_affinity for n in two.nodes] == [(0,), (1,)]  # the same file on a 2-CPU machine
+    cgroup = parse_on({"nodes": {"sim": {"cpu_affinity": [-1, 2]}}}, frozenset({2, 5}))  # a cpuset-restricted container
+    assert cgroup.nodes[0].cpu_affinity == (2, 5)
+
+
+@pytest.mark.parametrize("doc, expected", [
+    ({"nodes": {"sim": {"cpu_affinity": [4]}}}, "cpu_affinity: CPU 4 does not exist on this machine (usable CPUs: 0, 1, 2, 3)"),
+    ({"nodes": {"sim": {"cpu_affinity": [-5]}}}, "cpu_affinity -5: this machine has 4 usable CPUs"),
+    ({"nodes": {"sim": {"cpu_affinity": []}}}, "cpu_affinity must be a non-empty list of CPU ids"),
+    ({"nodes": {"sim": {"cpu_affinity": ["1-3"]}}}, "cpu_affinity entry '1-3' is not a CPU id or an 'a..b' range"),
+    ({"nodes": {"sim": {"cpu_affinity": ["3..1"]}}}, "range '3..1' is empty on this machine"),
+    ({"nodes": {"sim": {"cpu_affinity": [True]}}}, "cpu_affinity entries are CPU ids"),
+    ({"nodes": {"sim": {"nice": 20}}}, "nice must be an integer from -20 to 19, not 20"),
+    ({"nodes": {"sim": {"nice": "low"}}}, "nice must be an integer from -20 to 19"),
+    ({"compose": {"g": ["perception", "ghost"]}, "nodes": {"sim": {}, "perception": {}}},
+     "compose group 'g': unknown node 'ghost' (nodes of this config: sim, perception)"),
+    ({"compose": {"a": ["perception"], "b": ["perception"]}, "nodes": {"sim": {}, "perception": {}}},
+     "compose group 'b': node 'perception' is already in group 'a'"),
+    ({"compose": {"g": ["perception", "core"]}, "nodes": {"sim": {}, "perception": {}, "core": {}}},
+     "compose group 'g': node 'core' cannot be composed (the cyclic executive runs in its own process"),
+    ({"compose": {"g": ["sim"]}, "nodes": {"sim": {}}}, "node 'sim' cannot be composed"),
+    ({"compose": {"g": {"nodes": ["mission"], "cpu_affinity": [9]}}, "nodes": {"sim": {}, "mission": {}}},
+     "compose group 'g': cpu_affinity: CPU 9 does not exist"),
+    ({"compose": {"g": {"nodes": ["mission"], "nicety": 1}}, "nodes": {"sim": {}, "mission": {}}},
+     "compose group 'g': unknown field(s) nicety"),
+    ({"compose": {"g": ["mission"]}, "nodes": {"sim": {}, "mission": {"nice": 3}}},
+     "compose group 'g': set nice on the group, not on its member 'mission'"),
+    ({"compose": {"mission": ["mission"]}, "nodes": {"sim": {}, "mission": {}}}, "a group cannot have the name of a node"),
+    ({"compose": {"g": []}, "nodes": {"sim": {}}}, "nodes must be a non-empty list of node names"),
+    ({"compose": ["mission"], "nodes": {"sim": {}}}, "compose must be a mapping of group name -> list of nodes"),
+])
+def test_deployment_errors_are_one_line(doc, expected):
+    with pytest.raises(ConfigError) as info:
+        parse_on(doc)
+    assert expected in str(info.value) and "\n" not in str(info.value), str(info.value)
+
+
+def test_group_merge_and_process_order():
+    config = parse_on({"compose": {"ground": {"nodes": ["health", "mission"], "nice": 5, "cpu_affinity": [0]},
+                                   "sensing": ["perception", "navigation"]},
+                       "nodes": {"sim": {}, "perception": {}, "navigation": {"backoff_s": 3.0}, "core": {},
+                                 "mission": {"max_restarts": 2, "restart_window_s": 30},
+                                 "health": {"restart": "on-failure", "restart_window_s": 90, "backoff_s": 0.5},
+                                 "payload": {"enabled": False}}})
+    procs = config.processes()
+    assert [p.name for p in procs] == ["sim", "sensing", "core", "ground"]  # a group starts where its first member is
+    sensing, ground = procs[1], procs[3]
+    assert [n.name for n in ground.members] == ["mission", "health"]  # in the nodes' order
+    assert (sensing.composed, sensing.critical, sensing.restart, sensing.backoff_s) == (True, True, "never", 3.0)
+    assert (ground.critical, ground.restart, ground.max_restarts, ground.restart_window_s, ground.backoff_s) == \
+        (False, "always", 2, 90.0, 1.0)  # most restarting mode, strictest limit, longest window and back-off
+    assert (ground.cpu_affinity, ground.nice, procs[0].composed) == ((0,), 5, False)
+    mixed = parse_on({"compose": {"g": ["perception", "payload"]}, "nodes": {"sim": {}, "perception": {}, "payload": {}}})
+    assert mixed.processes()[1].critical and mixed.processes()[1].restart == "always"  # critical if any member is
+    assert parse_on({"compose": {"g": ["payload"]}, "nodes": {"sim": {}, "payload": {"enabled": False}}}).groups == ()
+
+
+def test_board_config_prepares_composed_processes(tmp_path):
+    config = load_system_config(BOARD)
+    assert config.names == load_system_config(SITL).names  # the same nodes as sitl.yaml ...
+    for name in config.names:  # ... with the same parameters
+        assert config.node(name).parameters == load_system_config(SITL).node(name).parameters, name
+    specs = prepare_run(config, tmp_path / "run")
+    assert [(s.name, s.members) for s in specs] == [
+        ("sim", ()), ("sensing", ("perception", "navigation")), ("core", ()),
+        ("ground", ("mission", "payload", "health", "bridge", "recorder"))]
+    cpus = sorted(__import__("os").sched_getaffinity(0))
+    by_name = {s.name: s for s in specs}
+    assert by_name["core"].placement.cpu_affinity == (cpus[-1],)  # alone on the last CPU
+    assert all(by_name[n].placement.cpu_affinity == tuple(cpus[:-1] or cpus) for n in ("sim", "sensing", "ground"))
+    assert by_name["ground"].placement.nice == 5 and not by_name["ground"].critical
+    assert by_name["sensing"].critical and by_name["sensing"].restart.mode == "never"
+    ground = by_name["ground"]
+    assert ground.argv[0] == installed_executable("c4d_bringup", "container")
+    assert ground.argv[1:9] == ("--group", "ground", "c4d_mission/mission", "c4d_mission/payload", "c4d_health/health",
+                                "c4d_bridge_mavlink/bridge", "c4d_data/recorder", "--ros-args")
+    params = yaml.safe_load(Path(ground.argv[-1]).read_text())  # keyed by node: one rclpy context, five nodes
+    assert set(params) == {"/mission", "/payload", "/bridge", "/recorder"}  # health has no parameters here
+    assert params["/recorder"]["ros__parameters"] == {"output_dir": str(tmp_path / "run" / "flights")}
+    with pytest.raises(ConfigError, match="compose .process composition. is supported by c4d up / c4d fly only"):
+        launch_plan(str(BOARD), str(tmp_path / "run2"))
+
+
+def test_container_bad_input_is_one_line(tmp_path):
+    container = installed_executable("c4d_bringup", "container")
+    for args, expected in (((), "container: error: the following arguments are required"),
+                           (("c4d_gnc/core",), "container: error: c4d_gnc declares no component 'core'"),
+                           (("c4d_nowhere/x",), "container: error: no Python package c4d_nowhere installed"),
+                           (("perception",), "container: error: 'perception' is not PACKAGE/EXECUTABLE")):
+        done = subprocess.run([container, *args], capture_output=True, text=True, timeout=60, cwd=tmp_path)
+        assert done.returncode == 2 and done.stderr.strip().splitlines() == [done.stderr.strip()], done.stderr
+        assert done.stderr.startswith(expected), done.stderr
+    (tmp_path / "sys.yaml").write_text("compose: {g: [mission, core]}\nnodes: {sim: {}, core: {}, mission: {}}\n")
+    done = run_c4d("up", "--config", "sys.yaml", cwd=tmp_path)
+    assert done.returncode == 2 and "node 'core' cannot be composed" in done.stderr and not (tmp_path / "c4d_runs").exists()
+
+
+def test_placement_is_applied_to_the_child(tmp_path):
+    """A real child through the supervisor: its CPU set and niceness as configured; a niceness
+    below the supervisor's own that may not be set is a logged fallback, not a failure."""
+    import os
+    import sys
+
+    from c4d_bringup.supervisor import Placement, ProcessSpec, Supervisor
+
+    cpu = max(os.sched_getaffinity(0))
+    lines: list[str] = []
+    child = ProcessSpec("child", (sys.executable, "-c", "import time; time.sleep(30)"), tmp_path / "child.log",
+                        placement=Placement((cpu,), 7))
+    sup = Supervisor([child], {}, log=lines.append)
+    sup.start()
+    try:
+        pid = sup.pid("child")
+        assert os.sched_getaffinity(pid) == {cpu} and os.getpriority(os.PRIO_PROCESS, pid) == 7
+        assert lines == [f"child: started (pid {pid}, CPUs {cpu}, nice 7)"]
+    finally:
+        sup.stop(5.0)
+    assert Placement(None, os.getpriority(os.PRIO_PROCESS, 0) + 1).nice_refusal() is None  # raising is always allowed
+
+
+SCRIPT_WITHOUT_PRIVILEGES = """
+import os, sys
+from pathlib import Path
+from c4d_bringup.supervisor import Placement, ProcessSpec, Supervisor
+from c4d_ros import node_runtime
+lines = []
+sup = Supervisor([ProcessSpec("g", (sys.executable, "-c", "import time; time.sleep(30)"), Path(sys.argv[1]), placement=Placement(None, -5))],
+                 {}, log=lines.append)
+sup.start()
+lines.append(f"child nice {os.getpriority(os.PRIO_PROCESS, sup.pid('g'))}")
+sup.stop(5.0)
+class Log:
+    def info(self, text): lines.append("info " + text)
+    def warning(self, text): lines.append("warning " + text)
+node_runtime.apply_rt_priority(10, Log())
+lines.append(str(node_runtime.lock_memory()))
+print("\\n".join(lines))
+"""
+
+
+def test_not_permitted_is_a_logged_fallback(tmp_path):
+    """Without CAP_SYS_NICE / CAP_IPC_LOCK (dropped from the bounding set, default rlimits): a
+    negative nice, SCHED_FIFO and mlockall are each refused with the reason in the log, the child
+    still runs (at the inherited niceness)."""
+    import shutil
+    import sys
+
+    if shutil.which("setpriv") is None:
+        pytest.skip("setpriv (util-linux) is not installed")
+    done = subprocess.run(["setpriv", "--bounding-set=-sys_nice,-ipc_lock", sys.executable, "-c", SCRIPT_WITHOUT_PRIVILEGES,
+                           str(tmp_path / "g.log")], capture_output=True, text=True, timeout=60)
+    import resource
+
+    lines = done.stdout.splitlines()
+    assert done.returncode == 0, done.stderr
+    assert lines[0].startswith("g: nice -5 not permitted (below the current 0: needs CAP_SYS_NICE or RLIMIT_NICE >= 25")
+    assert lines[1].startswith("g: started (pid") and "nice -5" in lines[1]
+    assert "child nice 0" in lines
+    assert any(line.startswith("warning real-time: rt_priority 10 not applied (") for line in lines), lines
+    if resource.getrlimit(resource.RLIMIT_MEMLOCK)[0] != resource.RLIM_INFINITY:
+        assert lines[-1].startswith("memory not locked: RLIMIT_MEMLOCK"), lines
