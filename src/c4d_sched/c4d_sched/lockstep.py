@@ -103,7 +103,9 @@ class InputGate:
         self.clock_ns = t_ns if self.clock_ns is None else max(self.clock_ns, t_ns)
 
     def on_sample(self, stream: str, stamp_ns: int) -> None:
-        self.newest[stream] = max(self.newest[stream], stamp_ns)
+        """A sample of `stream` stamped `stamp_ns` arrived (a stream the gate does not wait for is ignored)."""
+        if stream in self.newest:
+            self.newest[stream] = max(self.newest[stream], stamp_ns)
 
     def missing(self, deadline_ns: int) -> tuple[str, ...]:
         """What tick `deadline_ns` still waits for: ('clock',) while simulated time is behind it,
