@@ -385,8 +385,8 @@ from pathlib import Path
 from c4d_bringup.supervisor import Placement, ProcessSpec, Supervisor
 from c4d_ros import node_runtime
 lines = []
-sup = Supervisor([ProcessSpec("g", (sys.executable, "-c", "import time; time.sleep(30)"), Path(sys.argv[1]), placement=Placement(None, -5))],
-                 {}, log=lines.append)
+child = (sys.executable, "-c", "import time; time.sleep(30)")
+sup = Supervisor([ProcessSpec("g", child, Path(sys.argv[1]), placement=Placement(None, -5))], {}, log=lines.append)
 sup.start()
 lines.append(f"child nice {os.getpriority(os.PRIO_PROCESS, sup.pid('g'))}")
 sup.stop(5.0)

@@ -123,10 +123,14 @@ def expected_lines(with_depth: bool) -> list[str]:
 
 @pytest.fixture(scope="module")
 def graph_up(module_processes, ros_node, tmp_path_factory):
-    """`c4d up` with the bundled system YAML (bridge on a free port), all nine nodes discovered."""
+    """`c4d up` with the bundled board.yaml (bridge on a free port), all nine nodes discovered. The
+    board layout — sitl.yaml's nodes and parameters, composed into 4 processes, pinned and niced
+    (issue 16) — is the one that could change the graph: composed nodes share one rclpy context
+    and a parameters file keyed by node name. sitl.yaml's one-process-per-node layout runs the same
+    node code and is flown by test_bringup_fly / test_bringup_up."""
     node, executor = ros_node
     tmp_path = tmp_path_factory.mktemp("up")
-    doc = yaml.safe_load((ROOT / "src" / "c4d_bringup" / "config" / "sitl.yaml").read_text())
+    doc = yaml.safe_load((ROOT / "src" / "c4d_bringup" / "config" / "board.yaml").read_text())
     doc["nodes"]["bridge"]["parameters"]["endpoints"] = ["udpin:127.0.0.1:0"]  # 14550 may be in use by other tests
     (tmp_path / "system.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
     c4d = installed_executable("c4d_bringup", "c4d")
@@ -137,7 +141,38 @@ def graph_up(module_processes, ros_node, tmp_path_factory):
     assert spin_for(executor, 45, lambda: set(MANIFEST.nodes) <= graph.nodes() or up.poll() is not None), \
         f"nodes up: {sorted(graph.nodes())}\n{module_processes.log_of(up)[-2000:]}"
     assert up.poll() is None, module_processes.log_of(up)[-2000:]
+    up.run_dir = tmp_path / "run"
     return up
+
+
+def test_board_layout_is_fewer_processes_pinned_and_niced(graph_up):
+    """board.yaml: 9 nodes in 4 processes (supervisor.json); each process's threads on the CPUs
+    and at the niceness the YAML gives (/proc): the core alone on the last CPU at SCHED_FIFO with its
+    memory locked, the ground group niced."""
+    import json
+    import os
+
+    state = json.loads((graph_up.run_dir / "supervisor.json").read_text())["nodes"]
+    assert {name: tuple(p["members"]) for name, p in state.items()} == {
+        "sim": ("sim",), "sensing": ("perception", "navigation"), "core": ("core",),
+        "ground": ("mission", "payload", "health", "bridge", "recorder")}
+    assert sorted(n for p in state.values() for n in p["members"]) == sorted(MANIFEST.nodes)
+    cpus = sorted(os.sched_getaffinity(0))
+    others = set(cpus[:-1] or cpus)
+    for name, affinity, nice in (("sim", others, 0), ("sensing", others, 0), ("core", {cpus[-1]}, 0), ("ground", others, 5)):
+        pid = state[name]["pid"]
+        tids = [int(t) for t in os.listdir(f"/proc/{pid}/task")]
+        assert {frozenset(os.sched_getaffinity(t)) for t in tids} == {frozenset(affinity)}, name
+        assert {os.getpriority(os.PRIO_PROCESS, t) for t in tids} == {nice}, name
+    core = state["core"]["pid"]
+    log = (graph_up.run_dir / "logs" / "core.log").read_text()
+    if "real-time: SCHED_FIFO priority 60" in log:  # where permitted (else the log says why, as a warning)
+        tids = [int(t) for t in os.listdir(f"/proc/{core}/task")]
+        assert {(os.sched_getscheduler(t), os.sched_getparam(t).sched_priority) for t in tids} == {(os.SCHED_FIFO, 60)}
+        status = dict(line.split(":", 1) for line in open(f"/proc/{core}/status"))
+        assert ("memory locked" in log) == (int(status["VmLck"].split()[0]) > 0), log[-500:]
+    else:
+        assert "real-time: rt_priority 60 not applied" in log, log[-500:]
 
 
 def test_live_graph_matches_the_manifest(graph_up, ros_node):
