@@ -22,7 +22,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, Range
 
 from c4d_interfaces.msg import VehicleState, VehicleStatus
-from c4d_ros import node_runtime
+from c4d_ros import cdr, gc_policy, node_runtime
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.manifest import NAV_ODOMETRY, NAV_STATE, P_BARO, P_GPS, P_IMU, P_MAG, P_RANGE_DOWN, STATUS
 from c4d_ros.params import ParameterError, Spec, declare_all
@@ -42,6 +42,8 @@ PARAMS = {
 LOG_PERIOD_S = 5.0
 ALWAYS_VALID = (VehicleState.VALID_ATTITUDE | VehicleState.VALID_ANGULAR_VELOCITY | VehicleState.VALID_ACCELERATION
                 | VehicleState.VALID_ANGULAR_ACCELERATION)
+MAP_FRAME, BASE_LINK = cdr.text("map"), cdr.text("base_link")
+STATE_FRAMES = (MAP_FRAME[0], BASE_LINK[0])  # the string lengths of navigation/state's CDR layout
 POSITION_VALID = (VehicleState.VALID_POSITION_XY | VehicleState.VALID_POSITION_Z | VehicleState.VALID_VELOCITY_XY
                   | VehicleState.VALID_VELOCITY_Z)
 
@@ -58,7 +60,8 @@ class NavigationNode:
         self.pub_state = node.create_publisher(VehicleState, NAV_STATE.name, NAV_STATE.qos)
         self.pub_odometry = node.create_publisher(Odometry, NAV_ODOMETRY.name, NAV_ODOMETRY.qos)
         node.create_timer(LOG_PERIOD_S, self.log_status)
-        node.create_subscription(Imu, P_IMU.name, self.on_imu, P_IMU.qos)
+        gc_policy.install(node)  # 500 Hz callbacks: no automatic full collection (c4d_ros.gc_policy)
+        node.create_subscription(Imu, P_IMU.name, self.on_imu, P_IMU.qos, raw=True)  # 500 Hz: serialized (c4d_ros.cdr)
         node.create_subscription(NavSatFix, P_GPS.name, self.on_gps, P_GPS.qos)
         node.create_subscription(FluidPressure, P_BARO.name, self.on_baro, P_BARO.qos)
         node.create_subscription(MagneticField, P_MAG.name, self.on_mag, P_MAG.qos)
@@ -82,61 +85,57 @@ class NavigationNode:
     def on_range(self, msg: Range) -> None:
         self.filter.range_down(msg.range, stamp_to_s(msg.header.stamp))
 
-    def on_imu(self, msg: Imu) -> None:
-        t = stamp_to_s(msg.header.stamp)
-        w, a = msg.angular_velocity, msg.linear_acceleration
-        if self.filter.imu(t, (w.x, w.y, w.z), (a.x, a.y, a.z)):
-            state = self.state_msg(msg.header.stamp, t)
-            self.pub_state.publish(state)
+    def on_imu(self, raw: bytes) -> None:
+        v = cdr.IMU.unpack(raw, Imu)
+        sec, nanosec = v[1], v[2]
+        t = sec + nanosec * 1e-9
+        if self.filter.imu(t, v[cdr.IMU_GYRO], v[cdr.IMU_ACCEL]):
+            self.pub_state.publish(self.state_cdr(sec, nanosec, t))
             if t - self.odometry_t >= self.odometry_period:
                 self.odometry_t = t
-                self.pub_odometry.publish(self.odometry_msg(state))
+                self.pub_odometry.publish(self.odometry_msg(sec, nanosec))
 
-    def state_msg(self, stamp, t: float) -> VehicleState:
-        ekf, s = self.ekf, VehicleState()
-        s.header.stamp = stamp
-        s.header.frame_id = "map"
-        s.child_frame_id = "base_link"
+    def state_cdr(self, sec: int, nanosec: int, t: float) -> bytes:
+        """navigation/state stamped with the IMU sample time, written straight to CDR (c4d_ros.cdr:
+        ~40 µs less per sample than filling a VehicleState message and serializing it)."""
+        ekf, filt = self.ekf, self.filter
         valid = ALWAYS_VALID
         if ekf.heading_valid:
             valid |= VehicleState.VALID_HEADING
         if ekf.position_valid:
             valid |= POSITION_VALID
-        s.position.x, s.position.y, s.position.z = (float(x) for x in ekf.p)
-        s.velocity.x, s.velocity.y, s.velocity.z = (float(x) for x in ekf.v)
-        s.acceleration.x, s.acceleration.y, s.acceleration.z = (float(x) for x in ekf.accel_world)
-        s.orientation.w, s.orientation.x, s.orientation.y, s.orientation.z = ekf.q
-        s.angular_velocity.x, s.angular_velocity.y, s.angular_velocity.z = (float(x) for x in self.filter.omega)
-        s.angular_acceleration.x, s.angular_acceleration.y, s.angular_acceleration.z = (float(x) for x in self.filter.alpha)
-        s.position_covariance = [float(x) for x in ekf.P[0:3, 0:3].ravel()]
-        s.velocity_covariance = [float(x) for x in ekf.P[3:6, 3:6].ravel()]
-        s.attitude_covariance = [float(x) for x in ekf.P[6:9, 6:9].ravel()]
-        s.gyro_bias.x, s.gyro_bias.y, s.gyro_bias.z = (float(x) for x in ekf.bg)
-        s.accel_bias.x, s.accel_bias.y, s.accel_bias.z = (float(x) for x in ekf.ba)
-        s.terrain_distance = self.filter.terrain_distance(t)
-        if not math.isnan(s.terrain_distance):
+        terrain = filt.terrain_distance(t)
+        if not math.isnan(terrain):
             valid |= VehicleState.VALID_TERRAIN_DISTANCE
+        origin = geodetic = (0.0, 0.0, 0.0)
         if ekf.origin is not None:
             valid |= VehicleState.VALID_ORIGIN
             o = ekf.origin
-            s.origin.latitude, s.origin.longitude, s.origin.altitude = o.latitude, o.longitude, o.altitude
+            origin = (o.latitude, o.longitude, o.altitude)
             if ekf.position_valid:
                 valid |= VehicleState.VALID_GLOBAL
-                s.geodetic.latitude, s.geodetic.longitude, s.geodetic.altitude = o.to_geodetic(*ekf.p)
-        s.valid = valid
-        return s
+                geodetic = o.to_geodetic(*ekf.p)
+        P = ekf.P
+        qw, qx, qy, qz = ekf.q
+        return cdr.VEHICLE_STATE.pack(
+            STATE_FRAMES, sec, nanosec, *MAP_FRAME, *BASE_LINK, valid, *ekf.p.tolist(), *ekf.v.tolist(),
+            *ekf.accel_world.tolist(), qx, qy, qz, qw, *filt.omega.tolist(), *filt.alpha.tolist(),
+            *P[0:3, 0:3].ravel().tolist(), *P[3:6, 3:6].ravel().tolist(), *P[6:9, 6:9].ravel().tolist(),
+            *ekf.bg.tolist(), *ekf.ba.tolist(), terrain, *origin, *geodetic)
 
-    def odometry_msg(self, s: VehicleState) -> Odometry:
+    def odometry_msg(self, sec: int, nanosec: int) -> Odometry:
         ekf, odom = self.ekf, Odometry()
-        odom.header, odom.child_frame_id = s.header, "base_link"
-        odom.pose.pose.position = s.position
-        odom.pose.pose.orientation = s.orientation
+        odom.header.stamp.sec, odom.header.stamp.nanosec = sec, nanosec
+        odom.header.frame_id, odom.child_frame_id = "map", "base_link"
+        p, o = odom.pose.pose.position, odom.pose.pose.orientation
+        p.x, p.y, p.z = ekf.p.tolist()
+        o.w, o.x, o.y, o.z = ekf.q
         v_body = rotation_matrix(ekf.q).T @ ekf.v  # Odometry twist is in the child (body) frame
-        odom.twist.twist.linear.x, odom.twist.twist.linear.y, odom.twist.twist.linear.z = (float(x) for x in v_body)
-        odom.twist.twist.angular = s.angular_velocity
+        odom.twist.twist.linear.x, odom.twist.twist.linear.y, odom.twist.twist.linear.z = v_body.tolist()
+        odom.twist.twist.angular.x, odom.twist.twist.angular.y, odom.twist.twist.angular.z = self.filter.omega.tolist()
         cov = np.zeros((6, 6))
         cov[0:3, 0:3], cov[3:6, 3:6] = ekf.P[0:3, 0:3], ekf.P[6:9, 6:9]
-        odom.pose.covariance = [float(x) for x in cov.ravel()]
+        odom.pose.covariance = cov.ravel().tolist()
         return odom
 
     def log_status(self) -> None:

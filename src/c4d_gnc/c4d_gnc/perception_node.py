@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
 
-from c4d_ros import node_runtime
+from c4d_ros import cdr, gc_policy, node_runtime
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.manifest import BARO, GPS, IMU, MAG, P_BARO, P_GPS, P_HEALTH, P_IMU, P_MAG, P_RANGE_DOWN, RANGE_DOWN, Topic
 from c4d_ros.params import ParameterError, Spec, declare_all
@@ -82,21 +82,26 @@ class PerceptionNode:
         self.pub_health = node.create_publisher(DiagnosticArray, P_HEALTH.name, P_HEALTH.qos)
         handlers = {"imu": self.on_imu, "gps": self.on_gps, "baro": self.on_baro, "mag": self.on_mag,
                     "range_down": self.on_range}
-        for s in STREAMS:
-            node.create_subscription(s.msg_type, s.raw.name, handlers[s.name], s.raw.qos)
+        for s in STREAMS:  # the IMU (500 Hz) is taken and republished serialized (c4d_ros.cdr)
+            node.create_subscription(s.msg_type, s.raw.name, handlers[s.name], s.raw.qos, raw=s.name == "imu")
         node.create_timer(HEALTH_PERIOD_S, self.publish_health)
+        gc_policy.install(node)  # 500 Hz callbacks: no automatic full collection (c4d_ros.gc_policy)
 
     def now(self) -> float:
         return self.clock.now().nanoseconds * 1e-9
 
-    def on_imu(self, msg: Imu) -> None:
-        w, a = msg.angular_velocity, msg.linear_acceleration
-        gyro, accel = (w.x, w.y, w.z), (a.x, a.y, a.z)
+    def on_imu(self, raw: bytes) -> None:
+        """Validate, calibrate and forward one serialized Imu: the bytes as they came when the
+        calibration is the identity, else repacked with the calibrated vectors."""
+        v = cdr.IMU.unpack(raw, Imu)
+        gyro, accel = v[cdr.IMU_GYRO], v[cdr.IMU_ACCEL]
         if self.monitors["imu"].accept(self.now(), gyro + accel, valid_imu(gyro, accel)):
-            gyro, accel = self.calibration.apply(gyro, accel)
-            msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = gyro
-            msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = accel
-            self.pubs["imu"].publish(msg)
+            if self.calibration.identity and v[0] == cdr.CDR_LE:
+                self.pubs["imu"].publish(bytes(raw))
+                return
+            values = list(v)
+            values[cdr.IMU_GYRO], values[cdr.IMU_ACCEL] = self.calibration.apply(gyro, accel)
+            self.pubs["imu"].publish(cdr.IMU.pack((values[3],), *values[1:]))
 
     def on_gps(self, msg: NavSatFix) -> None:
         ok = valid_fix(msg.latitude, msg.longitude, msg.altitude, msg.status.status >= NavSatStatus.STATUS_FIX)

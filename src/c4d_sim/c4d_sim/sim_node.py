@@ -184,7 +184,7 @@ class SimNode:
 
     def imu(self, k: int) -> None:
         """Publish every IMU sample taken since the last call (more than one after a stall), each with its stamp."""
-        for sample in self.sim.imu.take():
+        for sample in self.sim.imu.take(self.sim.present()):  # none before its stamp (honest stamps)
             self.publish_imu(sample)
 
     def publish_imu(self, sample: ImuSample) -> None:

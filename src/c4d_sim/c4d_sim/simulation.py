@@ -55,10 +55,14 @@ class ImuBacklog:
             self.pending.popleft()
             self.dropped += 1
 
-    def take(self) -> list[ImuSample]:
-        """The queued samples, oldest first; all but the newest count as late."""
-        out = list(self.pending)
-        self.pending.clear()
+    def take(self, until: float = math.inf) -> list[ImuSample]:
+        """The queued samples stamped at or before `until` [s, simulated], oldest first; all but the
+        newest count as late. Why `until`: the plant is stepped a physics period ahead of the tick
+        that steps it, so after a stall the newest sample of the catch-up can lie in the future;
+        it waits for its time (a real IMU never delivers a sample before measuring it)."""
+        pending, out = self.pending, []
+        while pending and pending[0].stamp <= until:
+            out.append(pending.popleft())
         self.late += max(0, len(out) - 1)
         return out
 
@@ -116,6 +120,14 @@ class Simulation:
                 if sample is not None:
                     self.imu.add(sample)
         self._last_tick = k
+
+    def present(self) -> float:
+        """Simulated time of this instant: what a sample's stamp may not exceed when it is published
+        (real time: monotonic time since tick 0's deadline, which is simulated t = 0 — immune to wall-clock
+        steps; lockstep: no bound, simulated time is the present)."""
+        if not self.anchor_epoch:
+            return math.inf
+        return (time.monotonic_ns() - (self._tick0_ns() or 0)) / 1e9
 
     def gps_fixes(self) -> list[GpsSample]:
         """Sample the GNSS receiver when due; return the fixes whose latency has passed, oldest first."""

@@ -3,6 +3,7 @@ command with the ESC failsafe, GNSS latency."""
 
 from __future__ import annotations
 
+import math
 import time
 
 import pytest
@@ -83,6 +84,20 @@ def test_imu_keeps_its_rate_and_stamps_through_a_stall(config):
     batch = sim.imu.take()
     assert [s.stamp for s in batch] == pytest.approx([0.002 * n for n in range(6, 21)])
     assert (sim.imu.sampled, sim.imu.late, sim.imu.dropped) == (20, 4 + 14, 0)
+
+
+def test_an_imu_sample_is_never_taken_before_its_stamp(config):
+    """Issue 16: the plant runs one physics period ahead of the tick that steps it; after a catch-up the
+    newest sample can be stamped in the future. take(until) holds it back until its time comes."""
+    sim = simulation(config)
+    sim.physics(9)  # steps to t = 0.010: samples 0.002 .. 0.010
+    batch = sim.imu.take(until=0.009)  # the present is 0.009 s: the 0.010 sample is not measured yet
+    assert [s.stamp for s in batch] == pytest.approx([0.002, 0.004, 0.006, 0.008])
+    assert [s.stamp for s in sim.imu.take(until=0.0101)] == pytest.approx([0.010])
+    assert sim.imu.late == 3
+    assert 0.0 <= sim.present() < 1.0  # real time: wall clock since tick 0 (anchored a moment ago)
+    sim.anchor_epoch = False  # lockstep: simulated time is the present, nothing is held back
+    assert sim.present() == math.inf
 
 
 def test_imu_backlog_beyond_its_bound_is_dropped_and_counted(config):
