@@ -319,10 +319,7 @@ def _parse_groups(doc: Any, nodes_doc: dict, enabled: dict[str, NodeConfig], w: 
         entry = {"nodes": entry} if isinstance(entry, list) else entry
         if not isinstance(entry, dict):
             raise ConfigError(f"{where}: must be a list of nodes or a mapping with 'nodes'")
-        unknown = set(entry) - GROUP_KEYS
-        if unknown:
-            raise ConfigError(f"{where}: unknown field(s) {', '.join(sorted(map(str, unknown)))} "
-                              f"(known: {', '.join(sorted(GROUP_KEYS))})")
+        _known_fields(entry, GROUP_KEYS, where)
         members = entry.get("nodes")
         if not isinstance(members, list) or not members or not all(isinstance(m, str) for m in members):
             raise ConfigError(f"{where}: nodes must be a non-empty list of node names")
@@ -340,12 +337,24 @@ def _parse_groups(doc: Any, nodes_doc: dict, enabled: dict[str, NodeConfig], w: 
                 if node is not None and getattr(node, key) is not None:
                     raise ConfigError(f"{where}: set {key} on the group, not on its member '{member}' "
                                       "(it applies to the whole process)")
-        affinity = parse_cpus(entry["cpu_affinity"], where, cpus) if "cpu_affinity" in entry else None
-        nice = parse_nice(entry["nice"], where) if "nice" in entry else None
+        affinity, nice = _placement(entry, where, cpus)
         running = tuple(m for m in members if m in enabled)
         if running:  # a group whose members are all disabled does not run
             groups.append(GroupConfig(name, tuple(m for m in enabled if m in running), affinity, nice))
     return tuple(groups)
+
+
+def _known_fields(entry: dict, known: set[str], where: str) -> None:
+    unknown = set(entry) - known
+    if unknown:
+        raise ConfigError(f"{where}: unknown field(s) {', '.join(sorted(map(str, unknown)))} "
+                          f"(known: {', '.join(sorted(known))})")
+
+
+def _placement(entry: dict, where: str, cpus: frozenset[int]) -> tuple[tuple[int, ...] | None, int | None]:
+    """cpu_affinity and nice of a node or group entry (None where not given)."""
+    affinity = parse_cpus(entry["cpu_affinity"], where, cpus) if "cpu_affinity" in entry else None
+    return affinity, parse_nice(entry["nice"], where) if "nice" in entry else None
 
 
 def _parse_node(name: Any, entry: Any, w: str, cpus: frozenset[int]) -> NodeConfig | None:
@@ -355,10 +364,7 @@ def _parse_node(name: Any, entry: Any, w: str, cpus: frozenset[int]) -> NodeConf
     entry = {} if entry is None else entry
     if not isinstance(entry, dict):
         raise ConfigError(f"{where}: settings must be a mapping")
-    unknown = set(entry) - NODE_KEYS
-    if unknown:
-        raise ConfigError(f"{where}: unknown field(s) {', '.join(sorted(map(str, unknown)))} "
-                          f"(known: {', '.join(sorted(NODE_KEYS))})")
+    _known_fields(entry, NODE_KEYS, where)
     enabled = entry.get("enabled", True)
     if not isinstance(enabled, bool):
         raise ConfigError(f"{where}: enabled must be true or false")
@@ -387,8 +393,7 @@ def _parse_node(name: Any, entry: Any, w: str, cpus: frozenset[int]) -> NodeConf
         raise ConfigError(f"{where}: parameters must be a mapping of name -> value")
     flat: dict[str, Any] = {}
     _flatten(params, "", flat, where)
-    affinity = parse_cpus(entry["cpu_affinity"], where, cpus) if "cpu_affinity" in entry else None
-    nice = parse_nice(entry["nice"], where) if "nice" in entry else None
+    affinity, nice = _placement(entry, where, cpus)
     if not enabled:
         return None
     return NodeConfig(name, package, executable, critical, restart, max_restarts, window, backoff, flat, affinity, nice)
