@@ -214,7 +214,8 @@ def fmt(value: Cell, digits: int = 1) -> str:
 
 def side_by_side(variants: Sequence[str], rows: Sequence[tuple[str, Sequence[Cell]] | str], digits: int = 1) -> str:
     """A text table: one column per variant, one line per (label, cells); a bare string is a section line."""
-    width = max([12, *(len(v) + 2 for v in variants)])
+    cells = [fmt(c, digits) for r in rows if not isinstance(r, str) for c in r[1]]
+    width = max([12, *(len(v) + 2 for v in variants), *(len(c) + 2 for c in cells)])
     label_w = max([10, *(len(r[0]) for r in rows if not isinstance(r, str))]) + 2
     lines = [" " * label_w + "".join(f"{v:>{width}}" for v in variants)]
     for row in rows:

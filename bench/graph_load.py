@@ -34,6 +34,7 @@ import argparse
 import json
 import os
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -131,10 +132,10 @@ def variant_config(v: Variant, out: Path) -> Path:
     ex = core["executive"]
     for task in ex["tasks"]:
         if task["rate_hz"] == ex["tick_hz"]:
-            task["rate_hz"] = v.tick_hz  # the per-tick chain (state update, rate loop, mixer) follows the tick
-    ex["tick_hz"] = v.tick_hz
+            task["rate_hz"] = int(v.tick_hz)  # the per-tick chain (state update, rate loop, mixer) follows the tick
+    ex["tick_hz"] = int(v.tick_hz)  # the core takes an integer tick rate
     sim = yaml.safe_load((ROOT / "src" / "c4d_sim" / "config" / "sim.yaml").read_text())
-    sim["sensors"]["imu_rate_hz"] = v.imu_hz
+    sim["sensors"]["imu_rate_hz"] = int(v.imu_hz)
     system = yaml.safe_load(v.config.read_text())
     out.mkdir(parents=True, exist_ok=True)
     for node, doc in (("core", core), ("sim", sim)):
@@ -143,11 +144,6 @@ def variant_config(v: Variant, out: Path) -> Path:
     path = out / "system.yaml"
     path.write_text(yaml.safe_dump(system, sort_keys=False))
     return path
-
-
-def compose_groups(config: Path) -> dict[str, list[str]]:
-    groups = (yaml.safe_load(config.read_text()) or {}).get("compose") or {}
-    return {g: list(m["nodes"] if isinstance(m, dict) else m) for g, m in groups.items()}
 
 
 def start_hog(cpu: int) -> subprocess.Popen:
@@ -171,9 +167,8 @@ def fly_variant(v: Variant, args, domain: int, root: Path) -> Result:
     """One `c4d fly` of the variant with the probe (and hog) running; figures filled from /proc and the MCAP."""
     result = Result(v)
     vdir = root / v.name.replace("@", "_").replace("+", "_")
-    vdir.mkdir(parents=True)
+    vdir.mkdir(parents=True)  # root/<repeat>/<variant>
     config = variant_config(v, vdir / "config")
-    groups = compose_groups(config)
     plan = vdir / "plan.yaml"
     plan.write_text(yaml.safe_dump(survey_plan(args.seconds), sort_keys=False))
     run_dir = result.run_dir = vdir / "run"
@@ -183,7 +178,7 @@ def fly_variant(v: Variant, args, domain: int, root: Path) -> Result:
     offset = time.time() - time.monotonic()
     log = open(vdir / "fly.log", "w")
     fly = subprocess.Popen([str(ROOT / "c4d"), "fly", "--mission", str(plan), "--config", str(config),
-                            "--run-dir", str(run_dir), "--no-report", "--timeout", str(args.seconds * 3)],
+                            "--run-dir", str(run_dir), "--no-report"],
                            stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env, start_new_session=True)
     series: dict[str, ProcessSeries] = {}
     last_memory = 0.0
@@ -197,9 +192,7 @@ def fly_variant(v: Variant, args, domain: int, root: Path) -> Result:
             now = time.time()
             memory = now - last_memory >= MEMORY_EVERY_S
             last_memory = now if memory else last_memory
-            for pid, label in processes(state).items():
-                if label in groups:
-                    label = f"{label} ({'+'.join(groups[label])})"
+            for pid, label in processes(state).items():  # a composed process: its members joined with '+'
                 figures = read_proc(pid, memory)
                 if figures is not None:
                     series.setdefault(label, ProcessSeries(label)).samples.append((now, pid, figures))
@@ -268,27 +261,44 @@ def read_flight(bag: Path, result: Result) -> None:
     result.rates = {n: (delivered[n], nominal[n]) for n in nominal if n in times}
 
 
-def table_rows(results: list[Result]) -> list:
-    """Rows of the side-by-side table (label, one cell per variant)."""
+def table_rows(groups: list[list[Result]]) -> list:
+    """Rows of the side-by-side table (label, one cell per variant); a variant flown several times
+    (--repeat) shows the median of its numeric figures."""
     def each(fn):
         out = []
-        for r in results:
-            try:
-                out.append(fn(r))
-            except (KeyError, TypeError, ValueError, AttributeError, ZeroDivisionError):
-                out.append(None)
+        for runs in groups:
+            values = []
+            for r in runs:
+                try:
+                    values.append(fn(r))
+                except (KeyError, TypeError, ValueError, AttributeError, ZeroDivisionError, StopIteration):
+                    pass
+            numbers = [v for v in values if isinstance(v, int | float) and v == v]
+            if numbers:
+                out.append(statistics.median(numbers) if len(numbers) > 1 else numbers[0])
+            else:
+                out.append(" / ".join(dict.fromkeys(str(v) for v in values if isinstance(v, str))) or None)
         return out
 
+    def total(values):
+        present = [v for v in values if v is not None]
+        if not present:
+            raise ValueError("no figures")
+        return sum(present)
+
+    results = [r for runs in groups for r in runs]
     labels = list(dict.fromkeys(label for r in results for label in r.cpu))
-    rows: list = [("flight (measurement window) [s]", each(lambda r: r.window[1] - r.window[0])),
+    rows: list = [("flight (measurement window) [s]", each(lambda r: r.window[1] - r.window[0] or None)),
                   "CPU [% of one core] (utime+stime, all threads)"]
     rows += [(f"  {label}", each(lambda r, k=label: r.cpu.get(k))) for label in labels]
-    rows.append(("  total", each(lambda r: sum(c for c in r.cpu.values() if c is not None))))
+    rows.append(("  total", each(lambda r: total(r.cpu.values()))))
     rows.append("RSS / PSS [MB], peak in the window")
     for label in labels:
         rows.append((f"  {label} RSS", each(lambda r, k=label: r.memory[k][0] / 1024)))
-    rows.append(("  total RSS", each(lambda r: sum(m[0] for m in r.memory.values() if m[0]) / 1024)))
-    rows.append(("  total PSS", each(lambda r: sum(m[1] for m in r.memory.values() if m[1]) / 1024)))
+    rows.append(("  total RSS", each(lambda r: total(m[0] for m in r.memory.values()) / 1024)))
+    for label in labels:
+        rows.append((f"  {label} PSS", each(lambda r, k=label: r.memory[k][1] / 1024)))
+    rows.append(("  total PSS", each(lambda r: total(m[1] for m in r.memory.values()) / 1024)))
     rows += ["GNC core (gnc/executor_stats)",
              ("  placement", each(lambda r: r.core_placement or "-")),
              ("  tick rate [Hz]", each(lambda r: r.variant.tick_hz)),
@@ -320,7 +330,7 @@ def table_rows(results: list[Result]) -> list:
              ("  median [ms]", each(lambda r: r.stall[0])),
              ("  worst [ms]", each(lambda r: r.stall[1])),
              (f"  seconds with a stall > {STALL_MS:g} ms", each(lambda r: r.stall[2])),
-             ("flight", each(lambda r: r.outcome[:24]))]
+             ("flight", each(lambda r: r.outcome.split(";")[0][:40]))]
     return rows
 
 
@@ -331,6 +341,7 @@ def main() -> int:
     ap.add_argument("--hog", action="store_true", help="also run every variant without '@' with a busy loop (+hog)")
     ap.add_argument("--hog-cpu", type=int, default=-1, help="CPU the busy loop is pinned to (-1: the last)")
     ap.add_argument("--domain", type=int, default=210, help="ROS_DOMAIN_ID of the first variant (+1 per variant)")
+    ap.add_argument("--repeat", type=int, default=1, help="flights per variant (the table shows medians)")
     ap.add_argument("--markdown", action="store_true", help="print the table as markdown too")
     args = ap.parse_args()
     names = [n for n in args.variants.split(",") if n]
@@ -341,18 +352,23 @@ def main() -> int:
     except ValueError as exc:
         print(f"graph_load: error: {exc}", file=sys.stderr)
         return 2
+    if args.repeat < 1:
+        print("graph_load: error: --repeat must be at least 1", file=sys.stderr)
+        return 2
     if args.seconds < 30:
         print("graph_load: error: --seconds must be at least 30", file=sys.stderr)
         return 2
     root = Path(tempfile.mkdtemp(prefix="c4d-graph-load-"))
-    results = []
-    for k, v in enumerate(variants):
-        print(f"graph_load: {v.name}: flying ({v.config.relative_to(ROOT)})", flush=True)
-        results.append(fly_variant(v, args, args.domain + k, root))
-        print(f"graph_load: {v.name}: {results[-1].outcome}", flush=True)
-    cols = [r.variant.name for r in results]
-    rows = table_rows(results)
-    print(f"\nc4d whole graph, survey + hover, {os.cpu_count()} CPUs ({platform_line()}); runs in {root}")
+    groups: list[list[Result]] = [[] for _ in variants]
+    for n in range(args.repeat):  # interleaved: a slow phase of the machine hits every variant alike
+        for k, v in enumerate(variants):
+            print(f"graph_load: {v.name}: flight {n + 1}/{args.repeat} ({v.config.relative_to(ROOT)})", flush=True)
+            groups[k].append(fly_variant(v, args, args.domain + k, root / f"{n + 1}"))
+            print(f"graph_load: {v.name}: {groups[k][-1].outcome}", flush=True)
+    cols = [v.name for v in variants]
+    rows = table_rows(groups)
+    print(f"\nc4d whole graph, survey + hover, {args.repeat} flight(s) per variant"
+          f"{' (medians)' if args.repeat > 1 else ''}, {os.cpu_count()} CPUs ({platform_line()}); runs in {root}")
     print(side_by_side(cols, rows))
     if args.markdown:
         print("\n" + markdown_table(cols, rows))
