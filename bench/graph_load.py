@@ -47,20 +47,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "test" / "support"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from graph_figures import (  # noqa: E402
-    CoreFigures,
-    ProcessSeries,
-    StatsWindow,
-    core_figures,
-    delivered_rates,
-    markdown_table,
-    nominal_rates,
-    percentiles,
-    processes,
-    read_proc,
-    side_by_side,
-    stall_summary,
-)
+import graph_figures as gf  # noqa: E402
 from stall_probe import StallProbe  # noqa: E402
 
 CONFIGS = ROOT / "src" / "c4d_bringup" / "config"
@@ -83,11 +70,12 @@ class Variant:
 class Result:
     variant: Variant
     outcome: str = "not run"
+    failsafes: str = ""  # c4d fly's summary line
     window: tuple[float, float] = (0.0, 0.0)
     cpu: dict[str, float | None] = field(default_factory=dict)
     memory: dict[str, tuple[int | None, int | None]] = field(default_factory=dict)
-    core: CoreFigures | None = None
-    windows: list[StatsWindow] = field(default_factory=list)  # the executor's report windows
+    core: gf.CoreFigures | None = None
+    windows: list[gf.StatsWindow] = field(default_factory=list)  # the executor's report windows
     latency_ticks: list[float] = field(default_factory=list)
     rates: dict[str, tuple[float, float]] = field(default_factory=dict)  # topic -> (delivered, nominal)
     recorder: dict[str, str] = field(default_factory=dict)
@@ -180,7 +168,7 @@ def fly_variant(v: Variant, args, domain: int, root: Path) -> Result:
     fly = subprocess.Popen([str(ROOT / "c4d"), "fly", "--mission", str(plan), "--config", str(config),
                             "--run-dir", str(run_dir), "--no-report"],
                            stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env, start_new_session=True)
-    series: dict[str, ProcessSeries] = {}
+    series: dict[str, gf.ProcessSeries] = {}
     last_memory = 0.0
     try:
         while fly.poll() is None:
@@ -192,10 +180,10 @@ def fly_variant(v: Variant, args, domain: int, root: Path) -> Result:
             now = time.time()
             memory = now - last_memory >= MEMORY_EVERY_S
             last_memory = now if memory else last_memory
-            for pid, label in processes(state).items():  # a composed process: its members joined with '+'
-                figures = read_proc(pid, memory)
+            for pid, label in gf.processes(state).items():  # a composed process: its members joined with '+'
+                figures = gf.read_proc(pid, memory)
                 if figures is not None:
-                    series.setdefault(label, ProcessSeries(label)).samples.append((now, pid, figures))
+                    series.setdefault(label, gf.ProcessSeries(label)).samples.append((now, pid, figures))
                 if label == "core" and memory:
                     result.core_placement = placement(pid)  # the latest: the core sets its own policy once running
     finally:
@@ -208,8 +196,9 @@ def fly_variant(v: Variant, args, domain: int, root: Path) -> Result:
             hog.wait()
         log.close()
     text = (vdir / "fly.log").read_text(errors="replace")
-    result.outcome = next((line.split(None, 1)[1] for line in text.splitlines() if line.startswith("flight ")),
-                          f"c4d fly exit {fly.returncode}")
+    summary = {k: v for k, _, v in (line.partition(" ") for line in text.splitlines()) if k in ("flight", "failsafes")}
+    result.outcome = summary.get("flight", f"c4d fly exit {fly.returncode}").strip()
+    result.failsafes = summary.get("failsafes", "?").strip()
     bags = sorted((run_dir / "flights").glob("*.mcap"))
     if not bags:
         result.outcome += " (no MCAP)"
@@ -219,8 +208,8 @@ def fly_variant(v: Variant, args, domain: int, root: Path) -> Result:
     for label, s in series.items():
         result.cpu[label] = s.cpu_percent(start, end)
         result.memory[label] = s.memory_kb(start, end)
-    result.stall = stall_summary(stalls, start, end, STALL_MS)
-    result.core = core_figures(result.windows, stalls, STALL_MS) if result.windows else None
+    result.stall = gf.stall_summary(stalls, start, end, STALL_MS)
+    result.core = gf.core_figures(result.windows, stalls, STALL_MS) if result.windows else None
     return result
 
 
@@ -234,7 +223,7 @@ def read_flight(bag: Path, result: Result) -> None:
     result.window = (start, end)
     decoders = Decoders()
     times: dict[str, list[float]] = {}
-    windows: list[StatsWindow] = []
+    windows: list[gf.StatsWindow] = []
     latency: list[float] = []
     stamp = lambda t: t.sec + t.nanosec * 1e-9  # noqa: E731
     tick_s = 1.0 / result.variant.tick_hz
@@ -247,7 +236,7 @@ def read_flight(bag: Path, result: Result) -> None:
                 latency.append((stamp(m.header.stamp) - stamp(m.input_stamp)) / tick_s)
         elif name == "gnc/executor_stats":
             m = decoders.decode(topic, message.data)
-            windows.append(StatsWindow(stamp(m.header.stamp), m.ticks / m.tick_rate_hz if m.tick_rate_hz else 1.0,
+            windows.append(gf.StatsWindow(stamp(m.header.stamp), m.ticks / m.tick_rate_hz if m.tick_rate_hz else 1.0,
                                        int(m.ticks), int(m.overruns), m.load_max_percent,
                                        getattr(m, "release_jitter_p50_us", float("nan")), m.release_jitter_p99_us,
                                        m.release_jitter_max_us, m.tick_rate_hz))
@@ -256,8 +245,8 @@ def read_flight(bag: Path, result: Result) -> None:
             result.recorder = {kv.key: kv.value for kv in m.values}
     result.latency_ticks = latency
     result.windows = windows
-    nominal = nominal_rates({t.name: t.rate for t in MANIFEST.topics}, result.variant.imu_hz, result.variant.tick_hz)
-    delivered = delivered_rates({n: times.get(n, []) for n in nominal}, start, end)
+    nominal = gf.nominal_rates({t.name: t.rate for t in MANIFEST.topics}, result.variant.imu_hz, result.variant.tick_hz)
+    delivered = gf.delivered_rates({n: times.get(n, []) for n in nominal}, start, end)
     result.rates = {n: (delivered[n], nominal[n]) for n in nominal if n in times}
 
 
@@ -315,7 +304,7 @@ def table_rows(groups: list[list[Result]]) -> list:
              ("  release jitter max [us]", each(lambda r: r.core.jitter_max_us)),
              "IMU -> actuator latency [ticks] (control/actuators stamp - input_stamp)"]
     for q in (50, 99, 100):
-        rows.append((f"  {'max' if q == 100 else f'p{q}'}", each(lambda r, q=q: percentiles(r.latency_ticks, [q])[0])))
+        rows.append((f"  {'max' if q == 100 else f'p{q}'}", each(lambda r, q=q: gf.percentiles(r.latency_ticks, [q])[0])))
     rows.append("delivered rate [% of nominal] (flight MCAP)")
     topics = list(dict.fromkeys(t for r in results for t in r.rates))
     for t in topics:
@@ -330,7 +319,8 @@ def table_rows(groups: list[list[Result]]) -> list:
              ("  median [ms]", each(lambda r: r.stall[0])),
              ("  worst [ms]", each(lambda r: r.stall[1])),
              (f"  seconds with a stall > {STALL_MS:g} ms", each(lambda r: r.stall[2])),
-             ("flight", each(lambda r: r.outcome.split(";")[0][:40]))]
+             ("flight", each(lambda r: r.outcome.split(";")[0][:40])),
+             ("failsafes", each(lambda r: r.failsafes[:40]))]
     return rows
 
 
@@ -369,9 +359,9 @@ def main() -> int:
     rows = table_rows(groups)
     print(f"\nc4d whole graph, survey + hover, {args.repeat} flight(s) per variant"
           f"{' (medians)' if args.repeat > 1 else ''}, {os.cpu_count()} CPUs ({platform_line()}); runs in {root}")
-    print(side_by_side(cols, rows))
+    print(gf.side_by_side(cols, rows))
     if args.markdown:
-        print("\n" + markdown_table(cols, rows))
+        print("\n" + gf.markdown_table(cols, rows))
     return 0
 
 
