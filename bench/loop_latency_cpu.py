@@ -40,6 +40,7 @@ import ros_domain
 ROOT = Path(__file__).resolve().parent.parent
 NODES = [("c4d_sim", "sim"), ("c4d_gnc", "perception"), ("c4d_gnc", "navigation"), ("c4d_gnc", "core")]
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+CORE_PARAMS: list[str] = []  # --core-param
 
 
 def cpu_seconds(pid: int) -> float:
@@ -60,7 +61,7 @@ def run(events: bool, seconds: float, node, executor) -> dict:
         args = [str(ROOT / "install" / pkg / "lib" / pkg / name), "--ros-args", "-p",
                 f"events_executor:={'true' if events else 'false'}"]
         if name == "core":
-            args = args[:1] + ["--ros-args", "-p", "rt_priority:=50"]
+            args = args[:1] + ["--ros-args", "-p", "rt_priority:=50"] + [a for p in CORE_PARAMS for a in ("-p", p)]
         procs[name] = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     latencies: list[float] = []
     status: list = []
@@ -151,9 +152,14 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=1, help="runs per variant; figures are medians")
     parser.add_argument("--executors", choices=("events", "default", "both"), default="both")
     parser.add_argument("--hog", action="store_true", help="a busy loop pinned to the last CPU during the runs")
+    parser.add_argument("--core-param", action="append", default=[], metavar="NAME:=VALUE",
+                        help="a core parameter for the runs (repeatable), e.g. tick_phase:=0.75")
     args = parser.parse_args()
     if args.repeat < 1 or args.seconds <= 0:
         parser.error("--repeat must be >= 1 and --seconds > 0")
+    if any(":=" not in p for p in args.core_param):
+        parser.error("--core-param takes NAME:=VALUE")
+    CORE_PARAMS.extend(args.core_param)
     lease = ros_domain.acquire()
     os.environ["ROS_DOMAIN_ID"] = str(lease.domain_id)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"

@@ -33,7 +33,7 @@ from c4d_ros.drain import Drainer
 from c4d_ros.manifest import ACTUATORS, CLOCK, CORE_COMMAND, EXECUTOR_STATS, NAV_STATE, P_IMU, SCHEDULE, SETPOINT, STATUS
 from c4d_ros.params import Declaration, ParameterError, Spec
 from c4d_ros.qos import newest_only
-from c4d_sched.executive import Clock, CyclicExecutive, MonotonicClock
+from c4d_sched.executive import Clock, CyclicExecutive, MonotonicClock, grid_start_ns
 from c4d_sched.lockstep import CLOCK as SIM_CLOCK
 from c4d_sched.lockstep import InputGate, LockstepClock
 from c4d_sched.profiler import ExecutorReport, format_table
@@ -56,6 +56,9 @@ PARAMS = {
     "imu_topic": Spec(P_IMU.name, "gyro source of the rate loop [topic name]", read_only=True),
     "log_table": Spec(False, "print the profiler table with each report [bool]", read_only=True),
     "rt_priority": node_runtime.RT_PRIORITY,
+    "tick_phase": Spec(0.5, "where the ticks fall on CLOCK_MONOTONIC: tick k at (n + k + tick_phase) periods, n whole; the "
+                            "sim samples the IMU at whole IMU periods, so the gyro a tick reads is tick_phase periods old "
+                            "plus nothing random [fraction of a tick, 0..0.95]", 0.0, 0.95, read_only=True),
     "lockstep": Spec(False, "lockstep mode: tick on the sim's /clock, each tick waiting for the gyro and navigation "
                             "state of its step (deterministic); false = real time on the monotonic clock [bool]",
                      read_only=True),
@@ -74,6 +77,7 @@ class CoreParams:
     imu_topic: str
     log_table: bool
     rt_priority: int
+    tick_phase: float = 0.5
     lockstep: bool = False
     lockstep_input_timeout_s: float = 1.0
 
@@ -241,6 +245,10 @@ class CoreNode:
         if self.lockstep:
             self.log.info("LOCKSTEP: ticks follow the sim's simulated time (/clock), each waits for its step's inputs")
             self.executive.start(t0_ns=self._wait_for_sim_time())
+        else:
+            tick_ns = self.executive.tick_ns
+            phase_ns = round(self.params.tick_phase * tick_ns)
+            self.executive.start(t0_ns=grid_start_ns(time.monotonic_ns(), tick_ns, tick_ns, phase_ns))
         try:
             self.executive.run()
         finally:

@@ -74,6 +74,20 @@ class FakeClock:
         self.t += ns
 
 
+def grid_start_ns(now_ns: int, lead_ns: int, period_ns: int, offset_ns: int = 0) -> int:
+    """The first instant at least `lead_ns` after `now_ns` that lies `offset_ns` after a multiple of
+    `period_ns` on the clock's own time line (t0 for `CyclicExecutive.start`).
+    Why: processes whose executives start on one CLOCK_MONOTONIC grid keep a fixed phase to each
+    other for their whole life — the simulator samples the IMU on the grid, the core ticks a fixed
+    `offset_ns` later — so a sample's age at the tick that reads it is the same every tick and every
+    run, instead of a phase drawn at random by each process's start-up time (a sample landing just
+    after the tick that wanted it waits a whole tick: IMU→actuator p99 > 1 tick)."""
+    if period_ns <= 0 or not 0 <= offset_ns < period_ns:
+        raise ValueError(f"grid offset {offset_ns} ns must lie in [0, {period_ns}) ns")
+    earliest = now_ns + lead_ns
+    return earliest + (offset_ns - earliest) % period_ns
+
+
 class CyclicExecutive:
     """Runs a TickSchedule's tasks with absolute deadlines and a profiler (see module docstring)."""
 

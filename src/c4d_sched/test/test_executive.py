@@ -2,7 +2,7 @@
 
 import pytest
 
-from c4d_sched.executive import CyclicExecutive, FakeClock
+from c4d_sched.executive import CyclicExecutive, FakeClock, grid_start_ns
 from c4d_sched.profiler import Profiler, format_table
 from c4d_sched.tickschedule import ScheduleConfigError, parse_config, schedule_from_config
 
@@ -175,3 +175,19 @@ def test_release_jitter_percentiles_of_a_window():
         p.tick_done(j * 1000, 100_000, False, 0)
     r = p.report(1_000_000_000, 0)
     assert (r.release_jitter_p50_us, r.release_jitter_p99_us, r.release_jitter_max_us) == (50.0, 99.0, 5000.0)
+
+
+def test_grid_start_keeps_two_processes_at_a_fixed_phase_whenever_they_start():
+    """A sampler starting on the grid and a consumer starting `offset` later keep the same phase
+    whatever their start-up times: the consumer's tick always falls offset after a sample."""
+    period, offset = 2_000_000, 1_000_000
+    for sampler_now, consumer_now in ((0, 0), (123_457, 9_876_543), (1_999_999, 2_000_001), (5_000_000_017, 17)):
+        sampler = grid_start_ns(sampler_now, period, period)
+        consumer = grid_start_ns(consumer_now, period, period, offset)
+        assert sampler >= sampler_now + period and sampler - sampler_now < 2 * period
+        assert consumer >= consumer_now + period and consumer - consumer_now < 2 * period
+        assert sampler % period == 0 and (consumer - sampler) % period == offset
+    assert grid_start_ns(0, 0, period) == 0  # already on the grid: no extra period
+    for bad in (-1, period):
+        with pytest.raises(ValueError, match="grid offset"):
+            grid_start_ns(0, period, period, bad)

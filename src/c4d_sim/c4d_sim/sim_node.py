@@ -35,7 +35,7 @@ from c4d_ros import cdr, manifest, node_runtime
 from c4d_ros.drain import Drainer
 from c4d_ros.params import ParameterError, Spec, declare, declare_all
 from c4d_ros.stamps import s_to_stamp
-from c4d_sched.executive import Clock, CyclicExecutive, MonotonicClock
+from c4d_sched.executive import Clock, CyclicExecutive, MonotonicClock, grid_start_ns
 from c4d_sched.tickschedule import build_schedule
 
 from . import lockstep_sim
@@ -277,6 +277,9 @@ class SimNode:
             log.info(f"sim: LOCKSTEP — simulated time (/clock) advances only when the core answers each "
                      f"{1e3 / self.sensors.imu_rate_hz:g} ms step")
             executive.start(t0_ns=0)
+        else:  # simulated t = 0 on a whole IMU period of CLOCK_MONOTONIC: the core ticks at a fixed phase to the samples
+            tick_ns, imu_ns = executive.tick_ns, round(1e9 / self.sensors.imu_rate_hz)
+            executive.start(t0_ns=grid_start_ns(time.monotonic_ns(), tick_ns, imu_ns))
         try:
             executive.run()
         finally:
