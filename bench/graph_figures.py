@@ -212,9 +212,16 @@ def fmt(value: Cell, digits: int = 1) -> str:
     return f"{value:.{digits}f}"
 
 
-def side_by_side(variants: Sequence[str], rows: Sequence[tuple[str, Sequence[Cell]] | str], digits: int = 1) -> str:
-    """A text table: one column per variant, one line per (label, cells); a bare string is a section line."""
-    cells = [fmt(c, digits) for r in rows if not isinstance(r, str) for c in r[1]]
+Row = tuple[str, Sequence[Cell]] | tuple[str, Sequence[Cell], int] | str
+
+
+def _digits(row: tuple, default: int) -> int:
+    return row[2] if len(row) > 2 else default
+
+
+def side_by_side(variants: Sequence[str], rows: Sequence[Row], digits: int = 1) -> str:
+    """A text table: one column per variant, one line per (label, cells[, digits]); a bare string is a section line."""
+    cells = [fmt(c, _digits(r, digits)) for r in rows if not isinstance(r, str) for c in r[1]]
     width = max([12, *(len(v) + 2 for v in variants), *(len(c) + 2 for c in cells)])
     label_w = max([10, *(len(r[0]) for r in rows if not isinstance(r, str))]) + 2
     lines = [" " * label_w + "".join(f"{v:>{width}}" for v in variants)]
@@ -222,17 +229,16 @@ def side_by_side(variants: Sequence[str], rows: Sequence[tuple[str, Sequence[Cel
         if isinstance(row, str):
             lines.append(row)
             continue
-        label, cells = row
-        lines.append(f"{label:<{label_w}}" + "".join(f"{fmt(c, digits):>{width}}" for c in cells))
+        lines.append(f"{row[0]:<{label_w}}" + "".join(f"{fmt(c, _digits(row, digits)):>{width}}" for c in row[1]))
     return "\n".join(lines)
 
 
-def markdown_table(variants: Sequence[str], rows: Sequence[tuple[str, Sequence[Cell]] | str], digits: int = 1) -> str:
+def markdown_table(variants: Sequence[str], rows: Sequence[Row], digits: int = 1) -> str:
     """The same table as GitHub markdown (section lines become bold rows)."""
     lines = ["| figure | " + " | ".join(variants) + " |", "|---|" + "---:|" * len(variants)]
     for row in rows:
         if isinstance(row, str):
             lines.append(f"| **{row.strip()}** |" + " |" * len(variants))
         else:
-            lines.append(f"| {row[0]} | " + " | ".join(fmt(c, digits) for c in row[1]) + " |")
+            lines.append(f"| {row[0]} | " + " | ".join(fmt(c, _digits(row, digits)) for c in row[1]) + " |")
     return "\n".join(lines)

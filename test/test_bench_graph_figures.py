@@ -105,9 +105,10 @@ def test_percentiles_and_stall_summary():
 
 
 def test_tables_put_variants_side_by_side():
-    rows = [("CPU total", [150.0, None]), "section", ("flight", ["completed", "aborted"])]
+    rows = [("CPU total", [150.0, None]), "section", ("flight", ["completed", "aborted"]), ("overruns %", [0.0123, 2], 3)]
     text = side_by_side(["today", "board"], rows).splitlines()
     assert text[0].split() == ["today", "board"]
     assert text[1].split() == ["CPU", "total", "150.0", "-"] and text[2] == "section"
     md = markdown_table(["today", "board"], rows).splitlines()
     assert md[2] == "| CPU total | 150.0 | - |" and md[3].startswith("| **section** |")
+    assert text[4].split() == ["overruns", "%", "0.012", "2"] and md[5] == "| overruns % | 0.012 | 2 |"
