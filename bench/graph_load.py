@@ -20,6 +20,8 @@ Variants (a variant config is a system YAML, see docs/bringup.md):
   today       src/c4d_bringup/config/sitl.yaml: nine processes, no placement
   board       src/c4d_bringup/config/board.yaml: the board deployment (affinity, nice, composition)
   board@1kHz  board.yaml with the core at a 1 kHz tick (its 500 Hz tasks at 1 kHz) and the sim's IMU at 1 kHz
+  board-shared@1kHz  board@1kHz with the niced `ground` group allowed on every CPU, the core's too (below its
+              SCHED_FIFO): on 2 CPUs the other CPU alone is too small for sim + sensing + ground at 1 kHz
   <v>+hog     <v> with a competing busy loop pinned to one CPU (--hog-cpu, default the last: the core's)
 
   . ./env.sh && flock /tmp/c4d_graph.lock python bench/graph_load.py [--variants today,board,board@1kHz] [--hog]
@@ -64,6 +66,7 @@ class Variant:
     tick_hz: float = 500.0
     imu_hz: float = 500.0
     hog: bool = False
+    ground_any_cpu: bool = False  # the niced ground group may also run on the core's CPU (below its SCHED_FIFO)
 
 
 @dataclass
@@ -88,7 +91,9 @@ def variant(name: str) -> Variant:
     """The Variant of a name (see the module docstring); ValueError names the known ones."""
     base, hog = (name[:-4], True) if name.endswith("+hog") else (name, False)
     known = {"today": Variant("today", CONFIGS / "sitl.yaml"), "board": Variant("board", CONFIGS / "board.yaml"),
-             "board@1kHz": Variant("board@1kHz", CONFIGS / "board.yaml", tick_hz=1000.0, imu_hz=1000.0)}
+             "board@1kHz": Variant("board@1kHz", CONFIGS / "board.yaml", tick_hz=1000.0, imu_hz=1000.0),
+             "board-shared@1kHz": Variant("board-shared@1kHz", CONFIGS / "board.yaml", tick_hz=1000.0, imu_hz=1000.0,
+                                          ground_any_cpu=True)}
     if base not in known:
         raise ValueError(f"unknown variant '{name}' (known: {', '.join(known)}, each also with +hog)")
     v = known[base]
@@ -114,7 +119,7 @@ def survey_plan(seconds: float) -> dict:
 def variant_config(v: Variant, out: Path) -> Path:
     """The system YAML of a variant: the named config, or for a changed tick/IMU rate a copy whose core
     and sim get derived core.yaml / sim.yaml files (written next to it) through their `config` parameter."""
-    if v.tick_hz == 500.0 and v.imu_hz == 500.0:
+    if v.tick_hz == 500.0 and v.imu_hz == 500.0 and not v.ground_any_cpu:
         return v.config
     core = yaml.safe_load((ROOT / "src" / "c4d_gnc" / "config" / "core.yaml").read_text())
     ex = core["executive"]
@@ -125,6 +130,8 @@ def variant_config(v: Variant, out: Path) -> Path:
     sim = yaml.safe_load((ROOT / "src" / "c4d_sim" / "config" / "sim.yaml").read_text())
     sim["sensors"]["imu_rate_hz"] = int(v.imu_hz)
     system = yaml.safe_load(v.config.read_text())
+    if v.ground_any_cpu:
+        system["compose"]["ground"]["cpu_affinity"] = ["0..-1"]
     out.mkdir(parents=True, exist_ok=True)
     for node, doc in (("core", core), ("sim", sim)):
         (out / f"{node}.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
