@@ -2,8 +2,8 @@
 """The whole SITL graph on a companion-board budget (issue 16): per deployment variant, side by side.
 
 For each variant, one `c4d fly` (the real CLI, as a child process, on a private ROS_DOMAIN_ID) of the
-survey in missions/survey.yaml with a hover of its first point prepended, so the flight (arm -> disarm)
-lasts at least --seconds. The measurement window is that flight. Printed per variant:
+survey in missions/survey.yaml with a hover over its first waypoint inserted after the take-off, so the
+flight (arm -> disarm) lasts at least --seconds. The measurement window is that flight. Printed per variant:
   - CPU % of one core per process (utime + stime of every thread from /proc/<pid>/stat, read each
     second; pids from the run's supervisor.json; a composed process is one row naming its nodes) and total;
   - peak RSS (VmRSS) and PSS (smaps_rollup: shared libraries split between the processes) per process, totals;
@@ -25,7 +25,7 @@ Variants (a variant config is a system YAML, see docs/bringup.md):
   <v>+hog     <v> with a competing busy loop pinned to one CPU (--hog-cpu, default the last: the core's)
 
   . ./env.sh && flock /tmp/c4d_graph.lock python bench/graph_load.py [--variants today,board,board@1kHz] [--hog]
-      [--seconds 120] [--markdown]
+      [--seconds 120] [--repeat N] [--markdown]
 
 --hog adds a +hog run of every listed variant without '@'. About 2.5 min per variant.
 """
@@ -195,8 +195,12 @@ def fly_variant(v: Variant, args, domain: int, root: Path) -> Result:
                     result.core_placement = placement(pid)  # the latest: the core sets its own policy once running
     finally:
         if fly.poll() is None:
-            os.killpg(fly.pid, signal.SIGINT)
-            fly.wait(60)
+            os.killpg(fly.pid, signal.SIGINT)  # c4d fly lands and stops its graph
+            try:
+                fly.wait(60)
+            except subprocess.TimeoutExpired:
+                os.killpg(fly.pid, signal.SIGKILL)
+                fly.wait()
         stalls = [(t + offset, ms) for t, ms in probe.stop()]
         if hog is not None:
             hog.kill()
