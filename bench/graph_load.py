@@ -195,7 +195,7 @@ def fly_variant(v: Variant, args, domain: int, root: Path) -> Result:
                     result.core_placement = placement(pid)  # the latest: the core sets its own policy once running
     finally:
         if fly.poll() is None:
-            os.killpg(fly.pid, signal.SIGINT)  # c4d fly lands and stops its graph
+            os.killpg(fly.pid, signal.SIGINT)  # c4d fly stops its graph
             try:
                 fly.wait(60)
             except subprocess.TimeoutExpired:
