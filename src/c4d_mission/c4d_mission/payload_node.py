@@ -25,12 +25,14 @@ from c4d_common.vehicle import MissionStatus
 from c4d_interfaces.msg import CaptureEvent, MissionPlan, MissionState, VehicleState, VehicleStatus
 from c4d_ros import manifest as m
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
+from c4d_ros.drain import LatestSampler
 from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.plan_msgs import plan_from_msg
 
 from .payload import CameraTrigger, Capture, CaptureLog, camera_mode
 
 GIMBAL_PERIOD_S = 0.02  # 50 Hz is plenty for a gimbal command
+STATE_PERIOD_S = 0.02  # the vehicle state is sampled at 50 Hz: captures are interpolated between samples (payload.py)
 TRIGGERS = {"waypoint": CaptureEvent.TRIGGER_WAYPOINT, "distance": CaptureEvent.TRIGGER_DISTANCE,
             "command": CaptureEvent.TRIGGER_COMMAND}
 PARAMETERS = {
@@ -45,9 +47,11 @@ def stamp_s(stamp: Any) -> float:
 
 class PayloadNode:
     """Follows mission/plan, mission/state, vehicle/status and the vehicle state; turns the
-    CameraTrigger's captures into CaptureEvents, the per-flight CaptureLog and gimbal commands."""
+    CameraTrigger's captures into CaptureEvents, the per-flight CaptureLog and gimbal commands.
+    The 500 Hz navigation/state is sampled at 50 Hz from a side node nobody spins (LatestSampler):
+    a callback per sample cost this node ~10 % of a core (bench/graph_load.py, issue 16)."""
 
-    def __init__(self, node: Any, output_dir: Path) -> None:
+    def __init__(self, node: Any, side_node: Any, output_dir: Path) -> None:
         self.node, self.output_dir = node, output_dir
         self.plan: Plan | None = None
         self.mission: MissionState | None = None
@@ -61,7 +65,15 @@ class PayloadNode:
         node.create_subscription(MissionPlan, m.MISSION_PLAN.name, self._on_plan, m.MISSION_PLAN.qos)
         node.create_subscription(MissionState, m.MISSION_STATE.name, self._on_mission, m.MISSION_STATE.qos)
         node.create_subscription(VehicleStatus, m.STATUS.name, self._on_status, m.STATUS.qos)
-        node.create_subscription(VehicleState, m.NAV_STATE.name, self._on_state, m.NAV_STATE.qos)
+        self.state_sampler = LatestSampler(side_node, VehicleState, m.NAV_STATE.name, m.NAV_STATE.qos)
+        self.state: VehicleState | None = None
+        node.create_timer(STATE_PERIOD_S, self._sample_state)
+
+    def _sample_state(self) -> None:
+        sample = self.state_sampler.latest()
+        if sample is not None and sample is not self.state:
+            self.state = sample
+            self._on_state(sample)
 
     def _on_plan(self, msg: MissionPlan) -> None:
         try:
@@ -124,7 +136,9 @@ def component(rclpy, host: Host) -> SpunNode:
     except ParameterError as err:
         node.destroy_node()
         raise ComponentError(str(err)) from None
-    return SpunNode("payload", node, bool(values["events_executor"]), 0, PayloadNode(node, Path(values["output_dir"])))
+    side = rclpy.create_node(m.side_node_name("payload"))
+    return SpunNode("payload", node, bool(values["events_executor"]), 0, PayloadNode(node, side, Path(values["output_dir"])),
+                    (side,))
 
 
 def main(argv: list[str] | None = None) -> int:
