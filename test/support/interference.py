@@ -78,7 +78,9 @@ class InterferenceFlight:
         self.run_dir = run_dir
         run_dir.mkdir(parents=True, exist_ok=True)
         plan = run_dir / "plan.yaml"
-        plan.write_text(yaml.safe_dump(square_plan(cruise_s), sort_keys=False))
+        doc = square_plan(cruise_s)
+        self.land_item = len(doc["items"]) - 1  # land_now() jumps there
+        plan.write_text(yaml.safe_dump(doc, sort_keys=False))
         self.log_path = run_dir / "fly.log"
         self.fly = subprocess.Popen([str(ROOT / "c4d"), "fly", "--mission", str(plan), "--run-dir", str(run_dir / "run"),
                                      "--no-report"], stdout=open(self.log_path, "w"), stderr=subprocess.STDOUT,
@@ -108,6 +110,9 @@ class InterferenceFlight:
                                       lambda m: setattr(o, "mission", (m.state, m.current_item)), manifest.MISSION_STATE.qos)
         self.windows: list[Window] = []
         self.stalls: list[tuple[float, float]] = []
+        from c4d_interfaces.srv import MissionControl
+
+        self.control = self.node.create_client(MissionControl, manifest.MISSION_CONTROL.name)
 
     # ----------------------------------------------------------------- waiting
     def spin(self, seconds: float, until=None) -> bool:
@@ -163,6 +168,21 @@ class InterferenceFlight:
         if alts:
             w.min_alt, w.max_alt = min(alts), max(alts)
         return w
+
+    def land_now(self) -> str:
+        """Make the plan's land item current (mission/control SET_CURRENT, as a GCS does), so the
+        flight ends when the disturbances do, whatever cruise they left; '' when accepted, else why not."""
+        from c4d_interfaces.srv import MissionControl
+
+        if not self.control.wait_for_service(timeout_sec=10.0):
+            return "mission/control not available"
+        future = self.control.call_async(MissionControl.Request(action=MissionControl.Request.ACTION_SET_CURRENT,
+                                                                 item=self.land_item))
+        self.spin(10.0, future.done)
+        if not future.done():
+            return "mission/control did not answer within 10 s"
+        reply = future.result()
+        return "" if reply.result == MissionControl.Response.RESULT_ACCEPTED else f"refused ({reply.result}): {reply.message}"
 
     def finish(self, seconds: float = 240.0) -> int:
         """Wait for `c4d fly` to end (it lands, stops the graph and writes its summary); its exit code."""
