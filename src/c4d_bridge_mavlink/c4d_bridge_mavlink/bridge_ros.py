@@ -84,7 +84,7 @@ class RosSide:
                 (DiagnosticArray, topics.P_HEALTH, self._on_sensors)):
             node.create_subscription(msg_type, topic.name, callback, topic.qos)
         self.pub_heartbeat = node.create_publisher(Header, topics.GCS_HEARTBEAT.name, topics.GCS_HEARTBEAT.qos)
-        self.pub_pilot = node.create_publisher(GuidanceSetpoint, topics.SETPOINT.name, topics.SETPOINT.qos)
+        self.pub_pilot = node.create_publisher(GuidanceSetpoint, topics.PILOT_SETPOINT.name, topics.PILOT_SETPOINT.qos)
         self.pub_stats = node.create_publisher(DiagnosticArray, topics.LINK_STATS.name, topics.LINK_STATS.qos)
         self.vehicle = node.create_client(VehicleCommand, topics.VEHICLE_COMMAND.name)
         self.upload = node.create_client(UploadMission, topics.MISSION_UPLOAD.name)
@@ -363,7 +363,7 @@ class RosSide:
         self._call(self._param_client(spec.node), request, done)
 
     def publish_pilot(self, sp: PilotSetpoint) -> None:
-        """A pilot setpoint (manual.PilotInput) as guidance/setpoint at the ATTITUDE or RATE level."""
+        """A pilot setpoint (manual.PilotInput) as guidance/pilot at the ATTITUDE or RATE level."""
         from c4d_interfaces.msg import GuidanceSetpoint
 
         out = GuidanceSetpoint(control_level=GuidanceSetpoint.LEVEL_ATTITUDE if sp.level == "attitude" else

@@ -18,6 +18,14 @@ class Mode(IntEnum):
     POSITION = 3
     AUTO = 4
     KILL = 5
+    OFFBOARD = 6  # follow the offboard gateway's stream (guidance/offboard); entry needs a live stream
+
+
+class SetpointSource(IntEnum):  # VehicleStatus.SOURCE_*: who owns the setpoint stream (chosen by the mode)
+    CORE = 0  # the core's own targets: hold, take-off, land, stale input
+    MISSION = 1  # guidance/setpoint (AUTO: MISSION, GOTO, RTL)
+    OFFBOARD = 2  # guidance/offboard (OFFBOARD)
+    PILOT = 3  # guidance/pilot (RATE, ATTITUDE)
 
 
 class Nav(IntEnum):

@@ -57,6 +57,7 @@ class Manifest:
     topics: tuple[Topic, ...]
     services: tuple[Service, ...]
     nodes: tuple[str, ...] = field(default=())
+    actions: tuple[Action, ...] = field(default=())
 
     def topic(self, name: str) -> Topic:
         for t in self.topics:
@@ -101,8 +102,15 @@ NAV_ODOMETRY = Topic("navigation/odometry", "nav_msgs/msg/Odometry", ST, "50 Hz 
                      "the estimate as standard odometry in `map` (tools, the c4d CLI); health: navigation's liveness")
 # --- GNC core -----------------------------------------------------------------------------
 SETPOINT = Topic("guidance/setpoint", "c4d_interfaces/msg/GuidanceSetpoint", ST,
-                 "50 Hz while flying a plan / RTL / go-to; per MANUAL_CONTROL frame in STABILIZED/ACRO",
-                 ("mission", "bridge"), ("core",), "mission: position level; bridge: pilot attitude / rate level")
+                 "50 Hz while flying a plan / RTL / go-to (AUTO only)", ("mission",), ("core",),
+                 "the mission's stream: the core follows it in AUTO (MISSION / GOTO / RTL) only")
+PILOT_SETPOINT = Topic("guidance/pilot", "c4d_interfaces/msg/GuidanceSetpoint", ST,
+                       "per MANUAL_CONTROL frame in STABILIZED / ACRO", ("bridge",), ("core",),
+                       "pilot attitude / rate level; the core follows it in ATTITUDE / RATE only")
+OFFBOARD_SETPOINT = Topic("guidance/offboard", "c4d_interfaces/msg/GuidanceSetpoint", ST,
+                          "as the external stream, at most 100 Hz", ("offboard",), ("core", "health", "bridge"),
+                          "validated external setpoints (the offboard gateway is the only publisher); the core follows "
+                          "it in OFFBOARD only; health: offboard_loss; bridge: POSITION_TARGET_LOCAL_NED")
 ACTUATORS = Topic("control/actuators", "c4d_interfaces/msg/ActuatorCommand", ST, "every tick (500 Hz)", ("core",), ("sim",),
                   "the core is the only publisher")
 STATUS = Topic("vehicle/status", "c4d_interfaces/msg/VehicleStatus", L, "on change + 5 Hz (health's heartbeat)",
@@ -128,6 +136,20 @@ GCS_HEARTBEAT = Topic("bridge/gcs_heartbeat", "std_msgs/msg/Header", ST, "per GC
                       (), "frame_id 'gcs'; health subscribes when its `link_topic` names it (not in the bundled YAML)")
 LINK_STATS = Topic("bridge/link_stats", "diagnostic_msgs/msg/DiagnosticArray", STATS, "1 Hz", ("bridge",), (),
                    "link up/losses, per endpoint rx/tx, rejections, utilisation")
+# --- offboard (the public API for external nodes, docs/offboard.md) -----------------------
+OFFBOARD_TRAJECTORY = Topic("offboard/trajectory_setpoint", "c4d_interfaces/msg/GuidanceSetpoint", ST,
+                            "external: >= 2 Hz to enter and keep OFFBOARD", ("bridge",), ("offboard",),
+                            "public input: any level, NaN = unset, frame map (ENU); also external nodes "
+                            "(bridge: MAVLink SET_POSITION_TARGET_* / SET_ATTITUDE_TARGET)")
+OFFBOARD_POSE = Topic("offboard/pose", "geometry_msgs/msg/PoseStamped", ST, "external", (), ("offboard",),
+                      "public input: position + yaw target, frame map (ENU); external nodes")
+OFFBOARD_TWIST = Topic("offboard/twist", "geometry_msgs/msg/TwistStamped", ST, "external", (), ("offboard",),
+                       "public input: velocity + yaw rate, frame map (ENU) or base_link (FLU); external nodes")
+OFFBOARD_STATUS = Topic("offboard/status", "diagnostic_msgs/msg/DiagnosticStatus", L, "1 Hz + on change",
+                        ("offboard",), ("health",), "stream live, accepted / rejected per reason / rate-limited counts, "
+                        "active action; health: the gateway's liveness")
+NAV_POSE = Topic("navigation/pose", "geometry_msgs/msg/PoseStamped", ST, "50 Hz (odometry_rate_hz)", ("navigation",), (),
+                 "the estimate's pose in `map` for external nodes")
 # --- recorder -----------------------------------------------------------------------------
 RECORDER_STATUS = Topic("recorder/status", "diagnostic_msgs/msg/DiagnosticStatus", L, "1 Hz + on change", ("recorder",),
                         (), "state, file, written, dropped; the c4d CLI and tests")
@@ -135,11 +157,12 @@ RECORDER_STATUS = Topic("recorder/status", "diagnostic_msgs/msg/DiagnosticStatus
 TOPICS: tuple[Topic, ...] = (
     IMU, GPS, BARO, MAG, RANGE_DOWN, BATTERY, GROUND_TRUTH, ACTUATOR_LINK, CLOCK,
     P_IMU, P_GPS, P_BARO, P_MAG, P_RANGE_DOWN, P_HEALTH,
-    NAV_STATE, NAV_ODOMETRY,
-    SETPOINT, ACTUATORS, STATUS, EXECUTOR_STATS, SCHEDULE,
+    NAV_STATE, NAV_ODOMETRY, NAV_POSE,
+    SETPOINT, PILOT_SETPOINT, OFFBOARD_SETPOINT, ACTUATORS, STATUS, EXECUTOR_STATS, SCHEDULE,
     MISSION_STATE, MISSION_PLAN, CAPTURES, GIMBAL,
     DIAGNOSTICS, HEALTH_SUMMARY,
     GCS_HEARTBEAT, LINK_STATS,
+    OFFBOARD_TRAJECTORY, OFFBOARD_POSE, OFFBOARD_TWIST, OFFBOARD_STATUS,
     RECORDER_STATUS,
 )
 
@@ -161,9 +184,28 @@ SERVICES: tuple[Service, ...] = (
     CORE_COMMAND, VEHICLE_COMMAND, MISSION_UPLOAD, MISSION_DOWNLOAD, MISSION_CONTROL, RECORDER_START, RECORDER_STOP,
 )
 
-NODES: tuple[str, ...] = ("sim", "perception", "navigation", "core", "mission", "payload", "health", "bridge", "recorder")
+# --- actions (rclpy action servers; clients are external nodes and c4d_client) ---------------
+@dataclass(frozen=True)
+class Action:
+    name: str
+    type: str  # e.g. "c4d_interfaces/action/GoTo"
+    server: str
+    about: str = ""
 
-MANIFEST = Manifest(TOPICS, SERVICES, NODES)
+
+ACTION_TAKEOFF = Action("offboard/takeoff", "c4d_interfaces/action/TakeOff", "offboard",
+                        "arm if needed, climb to an altitude above home, hold")
+ACTION_LAND = Action("offboard/land", "c4d_interfaces/action/Land", "offboard", "land here and disarm; cancel: hold")
+ACTION_GOTO = Action("offboard/goto", "c4d_interfaces/action/GoTo", "offboard",
+                     "fly to a map (ENU) position in OFFBOARD, feedback distance to go; cancel: hold")
+ACTION_FOLLOW_PATH = Action("offboard/follow_path", "c4d_interfaces/action/FollowPath", "offboard",
+                            "fly a nav_msgs/Path at a speed in OFFBOARD; cancel: hold")
+ACTIONS: tuple[Action, ...] = (ACTION_TAKEOFF, ACTION_LAND, ACTION_GOTO, ACTION_FOLLOW_PATH)
+
+NODES: tuple[str, ...] = ("sim", "perception", "navigation", "core", "mission", "payload", "health", "bridge", "offboard",
+                          "recorder")
+
+MANIFEST = Manifest(TOPICS, SERVICES, NODES, ACTIONS)
 
 
 def side_node_name(owner: str) -> str:

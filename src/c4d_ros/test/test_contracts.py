@@ -19,6 +19,7 @@ CONTRACTS = [
     (vehicle.Nav, VehicleStatus, "NAV_", True),
     (vehicle.Landed, VehicleStatus, "LANDED_", True),
     (vehicle.FailsafeAction, VehicleStatus, "FAILSAFE_", True),
+    (vehicle.SetpointSource, VehicleStatus, "SOURCE_", True),
     (vehicle.Level, GuidanceSetpoint, "LEVEL_", True),
     (vehicle.VehicleCommandId, VehicleCommand.Request, "CMD_", True),
     (vehicle.Command, VehicleCommand.Request, "CMD_", False),  # the core's subset
