@@ -6,7 +6,9 @@ subscriptions, the command service and the parameter services without blocking (
 into the GncCore blackboard.
 
 Interfaces (c4d_ros.manifest, docs/ARCHITECTURE.md):
-  subscribes  <imu_topic> (perception/imu: the gyro for the rate loop), navigation/state, guidance/setpoint
+  subscribes  <imu_topic> (perception/imu: the gyro for the rate loop), navigation/state, and the setpoints of
+              guidance/setpoint (mission), guidance/pilot (bridge), guidance/offboard (offboard gateway): the mode
+              picks the one that steers (setpoint_sources); the others are ignored and counted in vehicle/status
   serves      gnc/command (arm, disarm, take-off, land, hold, set mode, go-to; applied at the next tick)
   publishes   control/actuators (every tick; the only publisher), vehicle/status (latched, on change
               and at 5 Hz), gnc/executor_stats (every report_period_s), gnc/schedule (latched, once)
@@ -23,14 +25,28 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 from sensor_msgs.msg import Imu
 
+from c4d_common.vehicle import SetpointSource
 from c4d_interfaces.msg import ActuatorCommand, ExecutorStats, GuidanceSetpoint, ScheduleTable, VehicleState, VehicleStatus
 from c4d_interfaces.srv import VehicleCommand
 from c4d_ros import node_runtime
 from c4d_ros.drain import Drainer
-from c4d_ros.manifest import ACTUATORS, CLOCK, CORE_COMMAND, EXECUTOR_STATS, NAV_STATE, P_IMU, SCHEDULE, SETPOINT, STATUS
+from c4d_ros.manifest import (
+    ACTUATORS,
+    CLOCK,
+    CORE_COMMAND,
+    EXECUTOR_STATS,
+    NAV_STATE,
+    OFFBOARD_SETPOINT,
+    P_IMU,
+    PILOT_SETPOINT,
+    SCHEDULE,
+    SETPOINT,
+    STATUS,
+)
 from c4d_ros.params import Declaration, ParameterError, Spec
 from c4d_ros.qos import newest_only
 from c4d_sched.executive import Clock, CyclicExecutive, MonotonicClock, grid_start_ns
@@ -102,7 +118,9 @@ class CoreNode:
         # the 500 Hz inputs and output go serialized (c4d_gnc.wire: ~1 µs instead of ~40 µs per message)
         self.drainer.subscription(Imu, params.imu_topic, self.on_imu, newest_only(P_IMU.qos), raw=True)  # newest gyro
         self.drainer.subscription(VehicleState, NAV_STATE.name, self.on_state, NAV_STATE.qos, raw=True)
-        self.drainer.subscription(GuidanceSetpoint, SETPOINT.name, self.on_setpoint, SETPOINT.qos)
+        for source, topic in ((SetpointSource.MISSION, SETPOINT), (SetpointSource.PILOT, PILOT_SETPOINT),
+                              (SetpointSource.OFFBOARD, OFFBOARD_SETPOINT)):
+            self.drainer.subscription(GuidanceSetpoint, topic.name, partial(self.on_setpoint, source, topic.name), topic.qos)
         self.drainer.service(VehicleCommand, CORE_COMMAND.name, self.on_command)
         self.pub_actuators = node.create_publisher(ActuatorCommand, ACTUATORS.name, ACTUATORS.qos)
         self.pub_status = node.create_publisher(VehicleStatus, STATUS.name, STATUS.qos)
@@ -186,11 +204,12 @@ class CoreNode:
     def on_state(self, raw: bytes) -> None:
         self.core.inputs.state = wire.state_from_cdr(raw)
 
-    def on_setpoint(self, msg: GuidanceSetpoint) -> None:
+    def on_setpoint(self, source: SetpointSource, topic: str, msg: GuidanceSetpoint) -> None:
+        self.core.inputs.now = self.clock_s()  # arrival time: the offboard stream's proof of life
         try:
-            self.core.inputs.setpoint = conv.setpoint_from_msg(msg)
+            self.core.receive_setpoint(source, conv.setpoint_from_msg(msg))
         except ValueError as exc:
-            self.log.warning(f"guidance setpoint ignored: {exc}")
+            self.log.warning(f"{topic}: setpoint ignored: {exc}", throttle_duration_sec=5.0)
 
     def on_command(self, request: VehicleCommand.Request, response: VehicleCommand.Response) -> VehicleCommand.Response:
         self.core.inputs.now = self.clock_s()
@@ -212,10 +231,14 @@ class CoreNode:
     def status_task(self, k: int) -> None:
         out, now = self.core.out, self.core.inputs.now
         if self.status.due(out, now):
-            self.pub_status.publish(conv.status_msg(out, now, self.status.arm_time_ns))
+            self.pub_status.publish(conv.status_msg(out, now, self.status.arm_time_ns, setpoints_ignored=self.ignored(),
+                                                    offboard_stream_s=self.core.offboard_live_s()))
         for event in out.events:
             self.log.info(f"event: {event}")
         out.events.clear()
+
+    def ignored(self) -> int:
+        return self.core.inputs.setpoints.ignored & 0xFFFFFFFF
 
     def on_report(self, report: ExecutorReport) -> None:
         self.pub_stats.publish(conv.stats_msg(report, self.clock_s()))
@@ -266,7 +289,7 @@ class CoreNode:
         out.commands = tuple(0.0 for _ in out.commands)
         now = self.clock_s()
         self.pub_actuators.publish(conv.actuator_msg(out, now, self.executive.tick))
-        self.pub_status.publish(conv.status_msg(out, now, self.status.arm_time_ns))
+        self.pub_status.publish(conv.status_msg(out, now, self.status.arm_time_ns, setpoints_ignored=self.ignored()))
         time.sleep(0.2)  # let the last messages leave
         self.log.info("stopped: motors commanded to zero")
 

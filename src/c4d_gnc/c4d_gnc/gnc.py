@@ -6,12 +6,15 @@ rates, and reads `outputs`. Requests (arm, disarm, set mode, take-off, land, hol
 validated when they arrive and applied at the next `latch()` — a mode change never happens in
 the middle of a control chain.
 
-Modes (c4d_interfaces/VehicleStatus numbering): RATE and ATTITUDE follow external setpoints of
-that level; POSITION holds the position and heading captured on entry; AUTO runs a navigation
+Modes (c4d_interfaces/VehicleStatus numbering): RATE and ATTITUDE follow the pilot's setpoints of
+that level; OFFBOARD follows the offboard gateway's stream (entered only once that stream has been
+live for 1 s; on the ground a setpoint above it takes off; stale → hold where the vehicle is);
+POSITION holds the position and heading captured on entry; AUTO runs a navigation
 state — TAKEOFF (climb at the airframe's take-off speed to the target, then HOLD), HOLD, LAND
 (descend at the landing speed, detect touchdown, disarm), MISSION/GOTO/RTL (follow external
 guidance setpoints, holding if they go stale; RTL is the mission node flying a return home, kept
 apart from GOTO so that the vehicle's status says what it does); KILL stops the motors at once.
+Which source's setpoints steer is decided by the mode alone (setpoint_sources.owner).
 """
 
 from __future__ import annotations
@@ -21,11 +24,12 @@ from dataclasses import dataclass, field
 
 from c4d_common import quat
 from c4d_common.airframe import GRAVITY, Airframe
-from c4d_common.vehicle import Command, Landed, Level, Mode, Nav
+from c4d_common.vehicle import Command, Landed, Level, Mode, Nav, SetpointSource
 
 from .control.mixer import Mixer, MixResult
 from .control.rotation import RotationController
 from .control.translation import TranslationController
+from .setpoint_sources import OFFBOARD_ENTRY_S, SetpointInputs, owner
 
 NAN = float("nan")
 Vec = tuple[float, float, float]
@@ -70,7 +74,7 @@ class Inputs:
     state: StateSample | None = None
     gyro: Vec | None = None
     gyro_stamp: float = -math.inf
-    setpoint: Setpoint | None = None
+    setpoints: SetpointInputs = field(default_factory=SetpointInputs)
 
 
 @dataclass
@@ -80,6 +84,7 @@ class Outputs:
     mode: Mode = Mode.POSITION
     nav: Nav = Nav.NONE
     landed: Landed = Landed.ON_GROUND
+    source: SetpointSource = SetpointSource.CORE  # who steers the cascade now
     input_stamp: float = 0.0  # sample time of the data the last command came from
     mix: MixResult | None = None
     events: list[str] = field(default_factory=list)
@@ -107,6 +112,8 @@ STATE_TIMEOUT_S = 0.1
 GYRO_TIMEOUT_S = 0.02
 SETPOINT_TIMEOUT_S = 0.5
 LANDED_TIME_S = 1.0
+LIFTOFF_MARGIN_M = 0.3  # OFFBOARD on the ground: a position target this far above the vehicle (or climb velocity) lifts off
+BRAKE_ACCEL = 4.0  # [m/s^2] stale stream: hold at the point a brake at this deceleration would reach
 
 
 class GncCore:
@@ -136,6 +143,17 @@ class GncCore:
         self.landed_timer = 0.0
         self.landing_velocity: Vec = (0.0, 0.0, 0.0)
         self.active: Setpoint | None = None
+        self.following = False  # the owner's stream steered the last guidance step
+
+    # ----------------------------------------------------------------- setpoint inputs
+    def receive_setpoint(self, source: SetpointSource, setpoint: Setpoint) -> bool:
+        """A setpoint from `source` at the blackboard's time; False when ignored (source does not own the stream)."""
+        out = self.out
+        return self.inputs.setpoints.receive(source, setpoint, self.inputs.now, owner(out.mode, out.nav))
+
+    def offboard_live_s(self) -> float:
+        """[s] how long the offboard stream has been live (0: none)."""
+        return self.inputs.setpoints.offboard.live_for(self.inputs.now)
 
     # ----------------------------------------------------------------- requests & latch
     def inputs_fresh(self) -> str:
@@ -165,8 +183,15 @@ class GncCore:
                 return Verdict(False, "take-off needs a valid position estimate", retry=True)
         if req.command == Command.DISARM and armed and landed not in (Landed.ON_GROUND,) and not req.force:
             return Verdict(False, "refusing to disarm in the air (use force)")
-        if req.command == Command.SET_MODE and req.mode not in (Mode.RATE, Mode.ATTITUDE, Mode.POSITION, Mode.AUTO, Mode.KILL):
+        if req.command == Command.SET_MODE and req.mode not in (Mode.RATE, Mode.ATTITUDE, Mode.POSITION, Mode.AUTO, Mode.KILL,
+                                                                Mode.OFFBOARD):
             return Verdict(False, f"unknown mode {int(req.mode)}")
+        if req.command == Command.SET_MODE and req.mode == Mode.OFFBOARD and self.out.mode != Mode.OFFBOARD:
+            live = self.offboard_live_s()
+            if live < OFFBOARD_ENTRY_S:
+                why = f"live for {live:.1f} s" if live > 0 else "none received in the last 0.5 s"
+                return Verdict(False, f"refusing OFFBOARD: needs a setpoint stream on guidance/offboard live for "
+                                      f">= {OFFBOARD_ENTRY_S:g} s at >= 2 Hz ({why})", retry=True)
         if req.command in (Command.LAND, Command.HOLD, Command.GOTO, Command.RETURN_TO_LAUNCH) and not armed:
             return Verdict(False, "not armed")
         if req.command in (Command.GOTO, Command.RETURN_TO_LAUNCH) and landed == Landed.ON_GROUND:
@@ -200,7 +225,7 @@ class GncCore:
             if req.mode == Mode.KILL:
                 out.armed = False
                 out.events.append("kill")
-            if req.mode in (Mode.POSITION, Mode.AUTO):
+            if req.mode in (Mode.POSITION, Mode.AUTO, Mode.OFFBOARD):
                 self._capture_hold()
             out.mode = req.mode
             out.nav = Nav.HOLD if req.mode == Mode.AUTO and out.armed else Nav.NONE
@@ -236,7 +261,7 @@ class GncCore:
     def state_update(self, dt: float) -> None:
         """Estimation group: take the blackboard's state for this tick (read once, LET-like)."""
         self.state = self.inputs.state
-        self.setpoint = self.inputs.setpoint
+        self.setpoint = self.inputs.setpoints.latest(owner(self.out.mode, self.out.nav))
 
     def guidance(self, dt: float) -> None:
         """Guidance group: turn the mode / navigation state into the cascade's setpoint."""
@@ -245,7 +270,10 @@ class GncCore:
             return
         now = self.inputs.now
         mode = out.mode
-        external = self.setpoint if self.setpoint and now - self.setpoint.stamp <= SETPOINT_TIMEOUT_S else None
+        source = owner(mode, out.nav)
+        sp = self.setpoint
+        external = sp if sp is not None and source != SetpointSource.CORE and now - sp.stamp <= SETPOINT_TIMEOUT_S else None
+        out.source = source if external is not None else SetpointSource.CORE
         if mode in (Mode.RATE, Mode.ATTITUDE):
             level = Level.RATE if mode == Mode.RATE else Level.ATTITUDE
             if external is not None and external.level == level:
@@ -271,10 +299,40 @@ class GncCore:
                                    (0.0, 0.0, -self.af.land_speed), yaw=self.hold_yaw)
             self._detect_landing(s, dt)
             return
-        if mode == Mode.AUTO and out.nav in (Nav.MISSION, Nav.GOTO, Nav.RTL) and external is not None:
+        if mode == Mode.OFFBOARD and out.armed and out.landed == Landed.ON_GROUND:
+            if external is None or not self._lifts_off(external, s):
+                self.following = False
+                self.active = Setpoint(now, Level.POSITION, self.hold, (0.0, 0.0, 0.0), yaw=self.hold_yaw)
+                return
+            out.landed = Landed.TAKEOFF
+            out.events.append("offboard take-off")
+        if source in (SetpointSource.MISSION, SetpointSource.OFFBOARD) and external is not None:
+            if mode == Mode.OFFBOARD and out.landed == Landed.TAKEOFF and s.position[2] > 0.3:
+                out.landed = Landed.IN_AIR
+            self.following = True
             self.active = external
             return
+        if self.following and source != SetpointSource.CORE:
+            # the owner's stream went stale: hold where a brake from here ends, not where the mode began
+            self._capture_hold()
+            self.hold = _braking_point(s.position, s.velocity)
+            out.events.append(f"{source.name.lower()} setpoints stale: holding")
+        self.following = False
         self.active = Setpoint(now, Level.POSITION, self.hold, (0.0, 0.0, 0.0), yaw=self.hold_yaw)
+
+    @staticmethod
+    def _lifts_off(sp: Setpoint, s: StateSample) -> bool:
+        """An OFFBOARD setpoint that asks a vehicle on the ground to climb: a position target above it, an upward
+        velocity, or an attitude / rate setpoint with more than hover-idle thrust."""
+        if sp.level == Level.POSITION:
+            z = sp.position[2]
+            return (math.isfinite(z) and z > s.position[2] + LIFTOFF_MARGIN_M) or (
+                not math.isfinite(z) and math.isfinite(sp.velocity[2]) and sp.velocity[2] > 0.1)
+        if sp.level == Level.VELOCITY:
+            return math.isfinite(sp.velocity[2]) and sp.velocity[2] > 0.1
+        if sp.level == Level.ACCELERATION:
+            return math.isfinite(sp.acceleration[2]) and sp.acceleration[2] > 0.1
+        return math.isfinite(sp.thrust) and sp.thrust > 0.1
 
     def _detect_landing(self, s: StateSample, dt: float) -> None:
         """Touchdown = thrust well below hover while either the range finder sees the ground
@@ -352,7 +410,7 @@ class GncCore:
             out.mix = None
             self._reset_controllers()
             return
-        if out.landed == Landed.ON_GROUND and out.mode in (Mode.POSITION, Mode.AUTO) and out.nav != Nav.TAKEOFF:
+        if out.landed == Landed.ON_GROUND and out.mode in (Mode.POSITION, Mode.AUTO, Mode.OFFBOARD) and out.nav != Nav.TAKEOFF:
             # armed on the ground: spin at idle; only a take-off (or a pilot mode) lifts off
             out.commands = tuple(self.af.idle_command for _ in self.af.motors)
             self._reset_controllers()
@@ -368,3 +426,8 @@ class GncCore:
         """name → f(dt) for the executive (the mixer's entry is `mixer`)."""
         return {"state_update": self.state_update, "guidance": self.guidance, "position_control": self.position_control,
                 "attitude_control": self.attitude_control, "rate_control": self.rate_control, "mixer": self.mixer_task}
+
+
+def _braking_point(position: Vec, velocity: Vec) -> Vec:
+    """Where a vehicle at `position` moving at `velocity` stops when it brakes at BRAKE_ACCEL (per axis)."""
+    return tuple(p + v * abs(v) / (2 * BRAKE_ACCEL) for p, v in zip(position, velocity, strict=True))  # type: ignore[return-value]

@@ -67,8 +67,8 @@ def actuator_msg(out: Outputs, now: float, tick: int) -> ActuatorCommand:
     return msg
 
 
-def status_msg(out: Outputs, now: float, arm_time_ns: int,
-               failsafe: tuple[int, str] = (FailsafeAction.NONE, "")) -> VehicleStatus:
+def status_msg(out: Outputs, now: float, arm_time_ns: int, failsafe: tuple[int, str] = (FailsafeAction.NONE, ""),
+               setpoints_ignored: int = 0, offboard_stream_s: float = 0.0) -> VehicleStatus:
     msg = VehicleStatus()
     msg.header.stamp = s_to_stamp(now)
     msg.armed = out.armed
@@ -77,6 +77,9 @@ def status_msg(out: Outputs, now: float, arm_time_ns: int,
     msg.landed_state = int(out.landed)
     msg.failsafe_action, msg.failsafe_reason = int(failsafe[0]), failsafe[1]
     msg.arm_time_ns = arm_time_ns
+    msg.setpoint_source = int(out.source)
+    msg.setpoints_ignored = setpoints_ignored
+    msg.offboard_stream_s = offboard_stream_s
     return msg
 
 

@@ -1,6 +1,7 @@
 """When the core publishes vehicle/status, without ROS.
 
-The status goes out on every change of (armed, mode, navigation state, landed state) and at
+The status goes out on every change of (armed, mode, navigation state, landed state, setpoint
+source) and at
 least every `period_s` — that periodic message is also the heartbeat the health monitor
 watches. The cadence also remembers when the vehicle was armed (the status carries it).
 """
@@ -25,7 +26,7 @@ class StatusCadence:
         if out.armed and not self._armed:
             self.arm_time_ns = int(now * 1e9)
         self._armed = out.armed
-        key = (out.armed, out.mode, out.nav, out.landed)
+        key = (out.armed, out.mode, out.nav, out.landed, out.source)
         if key != self._key or now - self._sent >= self.period_s:
             self._key, self._sent = key, now
             return True

@@ -8,6 +8,7 @@ from closed_loop import NO_NOISE
 
 from c4d_common import quat
 from c4d_gnc.gnc import Command, Landed, Level, Mode, Nav, Request, Setpoint
+from c4d_gnc.setpoint_sources import owner
 
 
 def hover(loop, altitude=5.0, settle=5.0):
@@ -18,7 +19,8 @@ def hover(loop, altitude=5.0, settle=5.0):
 
 def follow(loop, seconds, make_setpoint, every=0.02):
     for _ in range(round(seconds / every)):
-        loop.core.inputs.setpoint = make_setpoint()
+        out = loop.core.out
+        loop.core.receive_setpoint(owner(out.mode, out.nav), make_setpoint())  # as the mode's source would
         loop.run(every)
 
 

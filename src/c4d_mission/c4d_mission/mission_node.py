@@ -8,7 +8,8 @@ checked against the geofence unless `force`) are flown by the mission node; disa
 hold and set mode are forwarded to the core's gnc/command; once the core accepts, hold and set
 mode pause the mission (resumed by mission/control resume), land and disarm abort it; a refused
 command changes nothing). Publishes guidance/setpoint (50 Hz while a mission or RTL
-flies), mission/state (on change and at 5 Hz) and mission/plan (latched). Mode changes reach
+flies, and only while the core is in AUTO: it owns no stream in OFFBOARD or a pilot mode),
+mission/state (on change and at 5 Hz) and mission/plan (latched). Mode changes reach
 the core only through its latched gnc/command interface.
 Parameters: plan_file (loaded and validated once home is known), min_battery (0.2),
 takeoff_altitude (2.5 m: least take-off altitude of a plan without a take-off item),
@@ -330,7 +331,8 @@ class MissionNode:
             for runner, out in self.arbiter.step(t, TICK_S, self._vehicle()):
                 for command, value in out.requests:
                     self._send_core(command, value).add_done_callback(partial(self._core_answered, runner, command))
-                if out.setpoint is not None:
+                if out.setpoint is not None and self.status.flight_mode == Mode.AUTO:
+                    # the core follows guidance/setpoint in AUTO only (it owns no stream in OFFBOARD or a pilot mode)
                     self.pub_setpoint.publish(setpoint_msg(t, *out.setpoint))
         mission = self.arbiter.mission
         key = (mission.plan.plan_id if mission.plan else 0, int(mission.status), mission.current, mission.last_reached)

@@ -11,6 +11,7 @@ from c4d_common.airframe import default_airframe_path, load_airframe
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.plan_files import load_plan
 from c4d_common.plan_validation import local_point, validate
+from c4d_common.vehicle import SetpointSource
 from c4d_gnc.core_config import default_config_path
 from c4d_gnc.gnc import Command, Landed, Level, Nav, Request, Setpoint
 from c4d_mission.executor import MissionExecutor, MissionStatus, Vehicle
@@ -53,7 +54,8 @@ class Sitl:
         self.send(result.requests)
         if result.setpoint is not None:
             position, velocity, yaw = result.setpoint
-            self.loop.core.inputs.setpoint = Setpoint(self.loop.t, Level.POSITION, position, velocity, yaw=yaw)
+            self.loop.core.receive_setpoint(SetpointSource.MISSION, Setpoint(self.loop.t, Level.POSITION, position, velocity,
+                                                                             yaw=yaw))
         return result
 
 
