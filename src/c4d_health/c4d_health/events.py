@@ -2,7 +2,7 @@
 
 What: `evaluate(snapshot, policy, t)` turns a `HealthSnapshot` (the latest of everything the
 health node hears: dead and stalled nodes, GNSS health, the estimate, battery, the plan's
-geofence, the ground link, executor overruns, core stalls) into the active events, each with a
+geofence, the ground link, executor overruns, core stalls, the offboard stream) into the active events, each with a
 detail for people: `{Event.BATTERY_LOW: "28%"}`. The `FailsafeArbiter` (policy.py) then decides the action.
 
 Why a pure function over a snapshot: every failsafe condition is tested without DDS
@@ -53,6 +53,15 @@ class LinkWatch:
 
 
 @dataclass(frozen=True)
+class OffboardWatch:
+    """The core's mode is OFFBOARD (vehicle/status) and when guidance/offboard was last heard, in
+    the monitor's running time (its own stalls discounted, liveness.py)."""
+
+    in_offboard: bool
+    last_heard: float
+
+
+@dataclass(frozen=True)
 class HealthSnapshot:
     """The latest state the monitors judge; None = nothing received (no event)."""
 
@@ -65,6 +74,7 @@ class HealthSnapshot:
     new_overruns: int = 0  # executor overruns since the previous statistics message
     stalled_nodes: tuple[str, ...] = ()  # sorted; silent but still in the ROS graph
     core_stall: CoreStallReport | None = None
+    offboard: OffboardWatch | None = None  # None: the core's mode not known yet
 
 
 def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict[str, str]:
@@ -96,4 +106,6 @@ def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict
         active[Event.CORE_STALL] = s.core_stall.stall
     if s.core_stall is not None and s.core_stall.repeated:
         active[Event.CORE_STALL_REPEATED] = s.core_stall.repeated
+    if s.offboard is not None and s.offboard.in_offboard and t - s.offboard.last_heard > policy.offboard_loss_timeout_s:
+        active[Event.OFFBOARD_LOSS] = f"no offboard setpoint for {t - s.offboard.last_heard:.1f} s in OFFBOARD"
     return active

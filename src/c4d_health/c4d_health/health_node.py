@@ -6,7 +6,9 @@ stalled if still in it — the graph sampled once a second: liveness.py), GNSS h
 (perception/health), estimator validity (navigation/state), battery state of charge
 (sensors/battery), geofence (mission/plan against the position),
 ground link (a heartbeat topic, when `link_topic` is set), executor overruns and core stalls
-(gnc/executor_stats: core_stall.py); the conditions are judged by events.py. Publishes `diagnostics`
+(gnc/executor_stats: core_stall.py), the offboard stream (guidance/offboard, sampled at the
+tick, silent for `offboard_loss_timeout_s` while the core is in OFFBOARD: offboard_loss); the
+conditions are judged by events.py. Publishes `diagnostics`
 (DiagnosticArray, 1 Hz, one status per monitor) and `health/summary` (DiagnosticStatus: overall
 level, active events, failsafe action and reason, dead and stalled nodes). The failsafe policy
 (config/failsafe.yaml, parameter `policy_file`) turns events into hold / RTL / land /
@@ -31,8 +33,8 @@ from c4d_common.geodesy import GeoOrigin
 from c4d_common.geofence import Point3
 from c4d_common.plan import Geofence
 from c4d_common.share import share_file
-from c4d_common.vehicle import CommandResult, Landed
-from c4d_interfaces.msg import ExecutorStats, MissionPlan, MissionState, VehicleState, VehicleStatus
+from c4d_common.vehicle import CommandResult, Landed, Mode
+from c4d_interfaces.msg import ExecutorStats, GuidanceSetpoint, MissionPlan, MissionState, VehicleState, VehicleStatus
 from c4d_interfaces.srv import VehicleCommand
 from c4d_ros import manifest
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
@@ -42,7 +44,7 @@ from c4d_ros.plan_msgs import plan_from_msg
 
 from .commands import FailsafeCommand, failsafe_command
 from .core_stall import CORE, CoreStallMonitor, CoreStallReport, StatsWindow
-from .events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, evaluate
+from .events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, OffboardWatch, evaluate
 from .liveness import GraphPresence, LivenessMonitor, classify
 from .policy import Action, Event, FailsafeArbiter, FailsafePolicy, PolicyError
 
@@ -58,6 +60,7 @@ WATCHED = {  # node: topic that proves it alive (>= 5 Hz)
     "sim": manifest.BATTERY,
 }
 IN_AIR = (Landed.IN_AIR, Landed.TAKEOFF, Landed.LANDING)
+OFFBOARD_STREAM = "offboard"  # the liveness name of the guidance/offboard stream
 PARAMETERS = {
     "policy_file": Spec("", "failsafe policy YAML file [path]; empty: the bundled config/failsafe.yaml", read_only=True,
                         empty=lambda: default_policy()),
@@ -113,7 +116,10 @@ class HealthNode:
         self.liveness = LivenessMonitor(config.watched, config.policy.node_timeout_s, TICK_S, self._now())
         self.graph = GraphPresence(GRAPH_SAMPLE_S)
         self.core_stall = CoreStallMonitor(config.policy.core_stall, TICK_S, self._now())
+        self.offboard_stream = LivenessMonitor((OFFBOARD_STREAM,), config.policy.offboard_loss_timeout_s, TICK_S,
+                                               self._now())
         self.armed = self.in_air = False
+        self.mode: Mode | None = None  # the core's, from vehicle/status
         self.gnss: GnssReport | None = None
         self.battery_soc: float | None = None
         self.geofence: Geofence | None = None
@@ -130,6 +136,10 @@ class HealthNode:
         self.core_cmd = node.create_client(VehicleCommand, manifest.CORE_COMMAND.name)
         # 500 Hz: sampled at the 10 Hz tick instead of waking the executor for every sample
         self.state = LatestSampler(side_node, VehicleState, manifest.NAV_STATE.name, manifest.NAV_STATE.qos)
+        # up to 100 Hz: a new sample seen at the tick proves the stream alive (0.1 s resolution is plenty for 0.5 s)
+        self.offboard = LatestSampler(side_node, GuidanceSetpoint, manifest.OFFBOARD_SETPOINT.name,
+                                      manifest.OFFBOARD_SETPOINT.qos)
+        self.offboard_seen: object = None
         self._subscribe()
         node.create_timer(TICK_S, self._tick)
 
@@ -162,6 +172,11 @@ class HealthNode:
 
     def _on_status(self, msg: VehicleStatus) -> None:
         self.armed, self.in_air = bool(msg.armed), msg.landed_state in IN_AIR
+        mode = Mode(msg.flight_mode) if msg.flight_mode in Mode._value2member_map_ else Mode.UNKNOWN
+        if mode == Mode.OFFBOARD and self.mode not in (None, Mode.OFFBOARD) and self.arbiter.clear(Event.OFFBOARD_LOSS):
+            # the operator switched back to OFFBOARD (the core accepts it only with a live stream): taken over
+            self.node.get_logger().info("offboard_loss failsafe cleared: OFFBOARD re-entered with a live stream")
+        self.mode = mode
 
     def _on_perception_health(self, msg: DiagnosticArray) -> None:
         for s in msg.status:
@@ -184,11 +199,23 @@ class HealthNode:
     def _on_link(self, msg: Any) -> None:
         self.link_heard = self._now()
 
-    def snapshot(self) -> HealthSnapshot:
+    def _offboard_watch(self, t: float) -> OffboardWatch | None:
+        """Whether the core is in OFFBOARD and when guidance/offboard was last heard (monitor running time)."""
+        latest = self.offboard.latest()
+        if latest is not None and latest is not self.offboard_seen:  # a sample taken since the last tick
+            self.offboard_seen = latest
+            self.offboard_stream.heard(OFFBOARD_STREAM, t)
+        self.offboard_stream.silent(t)  # discounts the monitor's own stalls
+        if self.mode is None:
+            return None
+        return OffboardWatch(self.mode == Mode.OFFBOARD, self.offboard_stream.last_seen[OFFBOARD_STREAM])
+
+    def snapshot(self, t: float) -> HealthSnapshot:
         state = self.state.latest()
         link = LinkWatch(self.config.link_topic, self.link_heard) if self.config.link_topic else None
         return HealthSnapshot(self.dead, self.gnss, estimate_of(state) if state is not None else None, self.battery_soc,
-                              self.geofence, link, self.new_overruns, self.stalled, self.core_stall_report)
+                              self.geofence, link, self.new_overruns, self.stalled, self.core_stall_report,
+                              self._offboard_watch(t))
 
     def _tick(self) -> None:
         t = self._now()
@@ -199,7 +226,7 @@ class HealthNode:
         silence = classify(self.liveness.silent(t), self.graph.names)
         self.dead, self.stalled = silence.dead, silence.stalled
         self.core_stall_report = self.core_stall.check(t, self.graph.present(CORE))
-        active = evaluate(self.snapshot(), self.config.policy, t)
+        active = evaluate(self.snapshot(t), self.config.policy, t)
         before = self.arbiter.action
         action = self.arbiter.update(t, active, self.in_air)
         if action > before:  # the action only escalates until reset: request each escalation once

@@ -9,7 +9,8 @@ from c4d_common.geodesy import GeoOrigin
 from c4d_common.geofence import BreachKind, LocalFence
 from c4d_common.plan import Geofence
 from c4d_health.core_stall import CoreStallReport
-from c4d_health.events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, evaluate
+from c4d_health.events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, OffboardWatch, evaluate
+from c4d_health.liveness import LivenessMonitor
 from c4d_health.policy import EVENTS, Event, FailsafePolicy
 
 POLICY = FailsafePolicy.from_yaml(Path(__file__).resolve().parents[1] / "config" / "failsafe.yaml")
@@ -113,8 +114,34 @@ def test_executor_overrun():
     assert events(new_overruns=2) == {"executor_overrun": "2 new overrun(s)"}
 
 
+def test_offboard_loss_only_in_offboard_after_the_timeout():
+    assert POLICY.offboard_loss_timeout_s == 0.5
+    assert events(offboard=OffboardWatch(True, T - 0.5)) == {}
+    assert events(offboard=OffboardWatch(True, T - 0.6)) == {"offboard_loss": "no offboard setpoint for 0.6 s in OFFBOARD"}
+    assert events(offboard=OffboardWatch(False, T - 60.0)) == {}  # no stream needed outside OFFBOARD
+    assert events(offboard=None) == {}  # the core's mode not known yet
+    slow = replace(POLICY, offboard_loss_timeout_s=2.0)
+    assert evaluate(replace(HEALTHY, offboard=OffboardWatch(True, T - 1.9)), slow, T) == {}
+
+
+def test_a_stalled_monitor_does_not_see_an_offboard_loss():
+    """The stream's silence is counted in the monitor's running time (as node liveness): a 1 s
+    stall of the health node itself is nobody's silence; a stream that stopped is still found."""
+    stream = LivenessMonitor(("offboard",), POLICY.offboard_loss_timeout_s, 0.1, 0.0)
+    for k in range(1, 11):
+        stream.heard("offboard", k * 0.1)
+        stream.silent(k * 0.1)
+    stream.silent(2.0)  # the monitor did not run from 1.0 to 2.0 s; the queued samples are not taken yet
+    assert evaluate(replace(HEALTHY, offboard=OffboardWatch(True, stream.last_seen["offboard"])), POLICY, 2.0) == {}
+    for t in (2.1, 2.2, 2.3, 2.4, 2.5, 2.6):  # the stream really stopped
+        stream.silent(t)
+    lost = evaluate(replace(HEALTHY, offboard=OffboardWatch(True, stream.last_seen["offboard"])), POLICY, 2.6)
+    assert list(lost) == ["offboard_loss"]
+
+
 def test_events_come_in_event_order():
     everything = HealthSnapshot(("sim",), GnssReport(False, "lost"), replace(at(99.0, 0.0), attitude_valid=False), 0.1,
                                 Geofence(max_distance=15.0), LinkWatch("link", None), 1, ("core",),
-                                CoreStallReport("worst tick 30 ms, 14 skipped ticks", "3 stalls within 10 s"))
+                                CoreStallReport("worst tick 30 ms, 14 skipped ticks", "3 stalls within 10 s"),
+                                OffboardWatch(True, T - 1.0))
     assert list(evaluate(everything, POLICY, T)) == [e for e in Event if e != Event.BATTERY_LOW]

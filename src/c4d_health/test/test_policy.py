@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from c4d_health.policy import EVENTS, Action, CoreStallLimits, FailsafeArbiter, FailsafePolicy, PolicyError
+from c4d_health.policy import EVENTS, Action, CoreStallLimits, FailsafeArbiter, FailsafePolicy, PolicyError, Rule
 
 POLICY = FailsafePolicy.from_yaml(Path(__file__).resolve().parents[1] / "config" / "failsafe.yaml")
 
@@ -14,6 +14,54 @@ def test_bundled_policy():
     assert POLICY.battery_critical < POLICY.battery_low and POLICY.node_timeout_s == 0.6
     assert set(POLICY.rules) == set(EVENTS)  # every event has its rule in the bundled policy
     assert POLICY.core_stall == CoreStallLimits(20.0, 25, 1.5, 3, 10.0)
+    assert POLICY.offboard_loss_timeout_s == 0.5
+    assert POLICY.rules["offboard_loss"] == Rule(Action.HOLD, 0.0, True, Action.LAND, 5.0)
+
+
+def test_offboard_loss_holds_then_lands_after_the_condition_cleared():
+    """HOLD takes the vehicle out of OFFBOARD (the condition clears at once); LAND still follows 5 s after the HOLD."""
+    arbiter = FailsafeArbiter(POLICY)
+    loss = {"offboard_loss": "no offboard setpoint for 0.6 s in OFFBOARD"}
+    assert arbiter.update(10.0, loss, in_air=True) == Action.HOLD
+    assert arbiter.update(10.1, {}, in_air=True) == Action.HOLD  # out of OFFBOARD: no condition, escalation pending
+    assert arbiter.update(14.9, {}, in_air=True) == Action.HOLD
+    assert arbiter.update(15.0, {}, in_air=True) == Action.LAND
+    assert arbiter.reason.startswith("offboard_loss: no offboard setpoint") and "then land" in arbiter.reason
+    assert arbiter.update(30.0, {}, in_air=True) == Action.LAND and arbiter.pending is None
+    ground = FailsafeArbiter(POLICY)
+    assert ground.update(0.0, loss, in_air=False) == Action.NONE  # only in the air
+    assert ground.update(60.0, {}, in_air=False) == Action.NONE
+
+
+def test_what_cancels_a_pending_escalation():
+    loss = {"offboard_loss": "x"}
+    disarmed = FailsafeArbiter(POLICY)
+    disarmed.update(0.0, loss, True)
+    disarmed.reset()  # disarm
+    assert disarmed.update(6.0, {}, False) == Action.NONE
+    taken_over = FailsafeArbiter(POLICY)
+    taken_over.update(0.0, loss, True)
+    assert not taken_over.clear("battery_low") and taken_over.action == Action.HOLD  # another cause: stays
+    assert taken_over.clear("offboard_loss")  # OFFBOARD re-entered with a live stream
+    assert taken_over.update(6.0, {}, True) == Action.NONE
+    assert taken_over.update(7.0, loss, True) == Action.HOLD  # a second loss is handled again
+    assert taken_over.update(12.0, {}, True) == Action.LAND
+    severe = FailsafeArbiter(POLICY)
+    severe.update(0.0, loss, True)
+    assert severe.update(1.0, {"core_stall_repeated": "3 stalls"}, True) == Action.LAND
+    assert severe.reason == "core_stall_repeated: 3 stalls" and severe.pending is None
+    assert not severe.clear("offboard_loss") and severe.update(9.0, {}, True) == Action.LAND
+
+
+def test_escalation_to_rtl_is_configurable():
+    policy = FailsafePolicy.from_dict({"events": {"offboard_loss": {"action": "hold", "then": "rtl", "then_after_s": 2}},
+                                       "offboard_loss_timeout_s": 1.5})
+    assert policy.offboard_loss_timeout_s == 1.5
+    arbiter = FailsafeArbiter(policy)
+    assert arbiter.update(0.0, {"offboard_loss": "x"}, True) == Action.HOLD
+    assert arbiter.update(2.0, {}, True) == Action.RTL
+    direct = FailsafeArbiter(FailsafePolicy.from_dict({"events": {"offboard_loss": {"action": "rtl"}}}))
+    assert direct.update(0.0, {"offboard_loss": "x"}, True) == Action.RTL and direct.pending is None
 
 
 def test_a_dead_node_waits_for_its_restart_and_a_stalled_one_only_warns():
@@ -75,6 +123,14 @@ def test_ground_only_events_and_flicker():
     ({"events": {}, "core_stall_skipped_ticks": 2.5}, "core_stall_skipped_ticks must be an integer > 0"),
     ({"events": {}, "core_stall_repeat_count": True}, "core_stall_repeat_count must be an integer > 0"),
     ({"events": {}, "core_stats_timeout_s": "soon"}, "core_stats_timeout_s must be a number > 0"),
+    ({"events": {}, "offboard_loss_timeout_s": 0}, "offboard_loss_timeout_s must be a number > 0"),
+    ({"events": {}, "offboard_loss_timeout_s": "0.5"}, "offboard_loss_timeout_s must be a number > 0"),
+    ({"events": {"offboard_loss": {"action": "hold", "then": "fly"}}}, r"events.offboard_loss.then must be one of"),
+    ({"events": {"offboard_loss": {"action": "land", "then": "hold"}}}, "then must be more severe than its action"),
+    ({"events": {"offboard_loss": {"action": "hold", "then": "land", "then_after_s": -1}}}, "then_after_s must be"),
+    ({"events": {"offboard_loss": {"action": "hold", "then_after_s": 3}}}, "with a 'then' action"),
+    ({"events": {"offboard_loss": {"action": "hold", "thne": "land"}}}, r"events.offboard_loss: unknown field\(s\) thne"),
+    ({"events": {"offboard_loss": "hold"}}, "events.offboard_loss must be a mapping"),
 ])
 def test_bad_policy_names_the_field(doc, message):
     with pytest.raises(PolicyError, match=message):
