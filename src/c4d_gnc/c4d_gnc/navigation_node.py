@@ -3,7 +3,9 @@
 Subscribes perception/{imu,gps,baro,mag,range_down}; each IMU sample runs one EKF prediction
 and publishes navigation/state (c4d_interfaces/VehicleState, stamped with the IMU sample time)
 — so the state comes at IMU rate — and navigation/odometry (nav_msgs/Odometry,
-`odometry_rate_hz`, default 50 Hz to spare CPU). Validity flags follow the filter: attitude
+`odometry_rate_hz`, default 50 Hz to spare CPU) with navigation/pose (PoseStamped in `map`, for
+external nodes) and, where tf2_msgs is installed, TF map → base_link on /tf at the same rate
+(not there: one info line, no TF). Validity flags follow the filter: attitude
 after alignment, heading while the magnetometer is fused, position/velocity while GNSS fixes
 keep coming, origin/global once home is set, terrain distance from a fresh range reading.
 A missing sensor clears its flags; nothing stops. While the core reports the vehicle
@@ -16,15 +18,17 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Callable
 
 import numpy as np
+from geometry_msgs.msg import PoseStamped, TransformStamped, Vector3
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, Range
 
 from c4d_interfaces.msg import VehicleState, VehicleStatus
 from c4d_ros import cdr, gc_policy, node_runtime
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
-from c4d_ros.manifest import NAV_ODOMETRY, NAV_STATE, P_BARO, P_GPS, P_IMU, P_MAG, P_RANGE_DOWN, STATUS
+from c4d_ros.manifest import NAV_ODOMETRY, NAV_POSE, NAV_STATE, P_BARO, P_GPS, P_IMU, P_MAG, P_RANGE_DOWN, STATUS
 from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.stamps import stamp_to_s
 
@@ -48,6 +52,27 @@ POSITION_VALID = (VehicleState.VALID_POSITION_XY | VehicleState.VALID_POSITION_Z
                   | VehicleState.VALID_VELOCITY_Z)
 
 
+def tf_sender(node) -> Callable[[Odometry], None] | None:
+    """Publishes an odometry's pose as TF map → base_link on /tf (tf2_msgs/TFMessage, depth 100 as
+    tf2_ros' TransformBroadcaster); None, with one info line, where tf2_msgs is not installed
+    (the PyPI wheels do not carry it)."""
+    try:
+        from tf2_msgs.msg import TFMessage
+    except ImportError:
+        node.get_logger().info("tf2_msgs not installed: no TF map -> base_link (navigation/pose and "
+                               "navigation/odometry carry the same pose)")
+        return None
+    publisher = node.create_publisher(TFMessage, "/tf", 100)
+
+    def send(odometry: Odometry) -> None:
+        p, transform = odometry.pose.pose.position, TransformStamped(header=odometry.header,
+                                                                     child_frame_id=odometry.child_frame_id)
+        transform.transform.translation = Vector3(x=p.x, y=p.y, z=p.z)
+        transform.transform.rotation = odometry.pose.pose.orientation
+        publisher.publish(TFMessage(transforms=[transform]))
+    return send
+
+
 class NavigationNode:
     """Maps the perception topics onto NavigationFilter and publishes its estimate."""
 
@@ -59,6 +84,8 @@ class NavigationNode:
         self.odometry_t = -math.inf
         self.pub_state = node.create_publisher(VehicleState, NAV_STATE.name, NAV_STATE.qos)
         self.pub_odometry = node.create_publisher(Odometry, NAV_ODOMETRY.name, NAV_ODOMETRY.qos)
+        self.pub_pose = node.create_publisher(PoseStamped, NAV_POSE.name, NAV_POSE.qos)
+        self.send_tf = tf_sender(node)
         node.create_timer(LOG_PERIOD_S, self.log_status)
         gc_policy.install(node)  # 500 Hz callbacks: no automatic full collection (c4d_ros.gc_policy)
         node.create_subscription(Imu, P_IMU.name, self.on_imu, P_IMU.qos, raw=True)  # 500 Hz: serialized (c4d_ros.cdr)
@@ -93,7 +120,11 @@ class NavigationNode:
             self.pub_state.publish(self.state_cdr(sec, nanosec, t))
             if t - self.odometry_t >= self.odometry_period:
                 self.odometry_t = t
-                self.pub_odometry.publish(self.odometry_msg(sec, nanosec))
+                odometry = self.odometry_msg(sec, nanosec)
+                self.pub_odometry.publish(odometry)
+                self.pub_pose.publish(PoseStamped(header=odometry.header, pose=odometry.pose.pose))
+                if self.send_tf is not None:
+                    self.send_tf(odometry)
 
     def state_cdr(self, sec: int, nanosec: int, t: float) -> bytes:
         """navigation/state stamped with the IMU sample time, written straight to CDR (c4d_ros.cdr:
