@@ -16,6 +16,7 @@ bridge/link_stats (diagnostic_msgs/DiagnosticArray, 1 Hz).
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from dataclasses import dataclass
@@ -24,6 +25,7 @@ from typing import Any
 
 import yaml
 
+from c4d_common import quat
 from c4d_common.airframe import AirframeError, default_airframe_path, load_airframe
 from c4d_common.share import share_file
 from c4d_ros.component import ComponentError, Host, run_components
@@ -31,10 +33,11 @@ from c4d_ros.params import ParameterError, Spec, declare_all
 
 from . import encoders as enc
 from .bridge_ros import RosSide
-from .commands import Context, Kind, translate
+from .commands import Action, Context, Kind, translate, translate_set_mode
 from .link_monitor import LinkMonitor
 from .manual import PilotInput
 from .mission_protocol import MissionServer
+from .offboard import OffboardDecoder, VehicleFrame
 from .params import ParamServer
 from .signing import SigningConfig, mavlink
 from .telemetry import LinkBudget, TelemetryScheduler
@@ -74,7 +77,7 @@ STREAM_ENCODERS = {
     "ATTITUDE_QUATERNION": enc.attitude_quaternion, "GLOBAL_POSITION_INT": enc.global_position_int,
     "LOCAL_POSITION_NED": enc.local_position_ned, "GPS_RAW_INT": enc.gps_raw_int, "VFR_HUD": lambda s, now: enc.vfr_hud(s),
     "HOME_POSITION": enc.home_position, "EXTENDED_SYS_STATE": lambda s, now: enc.extended_sys_state(s),
-    "MISSION_CURRENT": lambda s, now: enc.mission_current(s),
+    "MISSION_CURRENT": lambda s, now: enc.mission_current(s), "POSITION_TARGET_LOCAL_NED": enc.position_target,
 }
 
 
@@ -153,6 +156,7 @@ class BridgeNode:
                                       on_set_current=self.ros.set_current_item)
         self.ros.bind(self.router, self.missions, self.params)
         self.pilot = PilotInput(settings.hover)
+        self.offboard = OffboardDecoder(self.sysid, self.router.compid)
         self.schedulers = self._schedulers(settings, time.monotonic())
         self.last_stats = 0.0
         node.get_logger().info(f"bridge: sysid {self.sysid}, endpoints {', '.join(settings.urls)}, "
@@ -205,7 +209,7 @@ class BridgeNode:
         self.ros.tick(now)
         if now - self.last_stats >= 1.0:
             self.last_stats = now
-            self.ros.publish_link_stats(self.router, self.schedulers, self.monitor.status(now), now)
+            self.ros.publish_link_stats(self.router, self.schedulers, self.monitor.status(now), now, self.offboard)
             self.monitor.timeout_s = self.params.get("COM_DL_LOSS_T")
 
     def on_message(self, received: Received) -> None:
@@ -219,18 +223,39 @@ class BridgeNode:
             self.params.handle(msg)
         elif kind in ("COMMAND_LONG", "COMMAND_INT"):
             self.on_command(msg)
+        elif kind in OffboardDecoder.MESSAGES:
+            self.on_offboard(msg)
+        elif kind == "SET_MODE" and msg.target_system == self.sysid:
+            self.execute(translate_set_mode(msg, self.context()),
+                         lambda result, reason="": self.ros.ack(msg, result, reason, M.MAV_CMD_DO_SET_MODE))
         elif kind == "MANUAL_CONTROL" and msg.target == self.sysid:
             sp = self.pilot.setpoint(msg.x, msg.y, msg.z, msg.r, self.snap.flight_mode, self.snap.orientation,
                                      time.monotonic())
             if sp is not None:
                 self.ros.publish_pilot(sp)
 
+    def on_offboard(self, msg) -> None:
+        """SET_POSITION_TARGET_* / SET_ATTITUDE_TARGET → offboard/trajectory_setpoint (offboard.py);
+        a dropped frame is counted there, each kind of drop announced once as STATUSTEXT."""
+        snap = self.snap
+        yaw = quat.yaw_of(snap.orientation) if snap.orientation is not None else math.nan
+        position = snap.position if snap.valid_position else (math.nan, math.nan, math.nan)
+        target = self.offboard.decode(msg, VehicleFrame(position, yaw, snap.home))
+        if target is not None:
+            self.ros.publish_offboard(target)
+        for text in self.offboard.take_warnings():
+            self.ros.statustext(M.MAV_SEVERITY_WARNING, text)
+
+    def context(self) -> Context:
+        snap = self.snap
+        return Context(snap.home, self.params.get("MIS_TAKEOFF_ALT"), snap.mission_state == M.MISSION_STATE_ACTIVE)
+
     def on_command(self, msg) -> None:
         """COMMAND_LONG / COMMAND_INT: translate, execute, COMMAND_ACK (commands.py)."""
-        snap = self.snap
-        action = translate(msg, Context(snap.home, self.params.get("MIS_TAKEOFF_ALT"),
-                                        snap.mission_state == M.MISSION_STATE_ACTIVE))
-        ack = lambda result, reason="": self.ros.ack(msg, result, reason)  # noqa: E731
+        self.execute(translate(msg, self.context()), lambda result, reason="": self.ros.ack(msg, result, reason))
+
+    def execute(self, action: Action, ack) -> None:
+        """Carry out a translated command; `ack(result, reason)` answers the GCS."""
         if action.kind == Kind.ACK:
             ack(action.result, action.reason)
         elif action.kind == Kind.VEHICLE:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.mavlink_items import ItemProblem, MavlinkItemError, item_from_mavlink, item_to_mavlink
 from c4d_common.plan import Geofence, Plan, PlanError
-from c4d_common.vehicle import CommandResult, FailsafeAction, MissionAction, MissionStatus, UploadRefusal
+from c4d_common.vehicle import CommandResult, FailsafeAction, Level, MissionAction, MissionStatus, UploadRefusal
 from c4d_ros import manifest as topics
 from c4d_ros.drain import LatestSampler
 
@@ -23,6 +23,7 @@ from .encoders import Snapshot
 from .health_report import FailsafeAnnouncer
 from .manual import PilotSetpoint
 from .mission_protocol import FENCE, MISSION, WireItem
+from .offboard import Target
 from .params import ParamSpec
 from .signing import mavlink
 from .statustext import StatusTextChunker
@@ -38,6 +39,33 @@ ITEM_RESULT = {ItemProblem.FRAME: M.MAV_MISSION_UNSUPPORTED_FRAME, ItemProblem.C
 # when the same upload may pass later (no home / battery state yet), DENIED while a plan runs.
 UPLOAD_REFUSAL_RESULT = {UploadRefusal.NO_HOME: M.MAV_MISSION_ERROR, UploadRefusal.BATTERY_UNKNOWN: M.MAV_MISSION_ERROR,
                          UploadRefusal.MISSION_ACTIVE: M.MAV_MISSION_DENIED, UploadRefusal.INVALID: M.MAV_MISSION_INVALID}
+
+
+def target_to_msg(t: Target):
+    """offboard.Target → c4d_interfaces/GuidanceSetpoint in `map` (header stamp left to the caller)."""
+    from c4d_interfaces.msg import GuidanceSetpoint
+
+    out = GuidanceSetpoint(control_level=int(t.level), yaw=t.yaw, yaw_rate=t.yaw_rate, thrust=t.thrust,
+                           max_horizontal_speed=math.nan, max_vertical_speed=math.nan)
+    out.header.frame_id = "map"
+    out.position.x, out.position.y, out.position.z = t.position
+    out.velocity.x, out.velocity.y, out.velocity.z = t.velocity
+    out.acceleration.x, out.acceleration.y, out.acceleration.z = t.acceleration
+    out.orientation.w, out.orientation.x, out.orientation.y, out.orientation.z = t.orientation
+    out.body_rate.x, out.body_rate.y, out.body_rate.z = t.body_rate
+    return out
+
+
+def target_from_msg(m) -> Target | None:
+    """c4d_interfaces/GuidanceSetpoint → offboard.Target (None for an unknown level)."""
+    try:
+        level = Level(m.control_level)
+    except ValueError:
+        return None
+    o = m.orientation
+    return Target(level, (m.position.x, m.position.y, m.position.z), (m.velocity.x, m.velocity.y, m.velocity.z),
+                  (m.acceleration.x, m.acceleration.y, m.acceleration.z), m.yaw, m.yaw_rate, (o.w, o.x, o.y, o.z),
+                  (m.body_rate.x, m.body_rate.y, m.body_rate.z), m.thrust)
 
 
 def failsafe_action(name: str) -> FailsafeAction:
@@ -85,6 +113,10 @@ class RosSide:
             node.create_subscription(msg_type, topic.name, callback, topic.qos)
         self.pub_heartbeat = node.create_publisher(Header, topics.GCS_HEARTBEAT.name, topics.GCS_HEARTBEAT.qos)
         self.pub_pilot = node.create_publisher(GuidanceSetpoint, topics.PILOT_SETPOINT.name, topics.PILOT_SETPOINT.qos)
+        self.pub_offboard = node.create_publisher(GuidanceSetpoint, topics.OFFBOARD_TRAJECTORY.name,
+                                                  topics.OFFBOARD_TRAJECTORY.qos)
+        node.create_subscription(GuidanceSetpoint, topics.OFFBOARD_SETPOINT.name, self._on_offboard,
+                                 topics.OFFBOARD_SETPOINT.qos)
         self.pub_stats = node.create_publisher(DiagnosticArray, topics.LINK_STATS.name, topics.LINK_STATS.qos)
         self.vehicle = node.create_client(VehicleCommand, topics.VEHICLE_COMMAND.name)
         self.upload = node.create_client(UploadMission, topics.MISSION_UPLOAD.name)
@@ -148,6 +180,11 @@ class RosSide:
         s = self.snapshot
         s.armed, s.flight_mode, s.nav_state, s.landed_state = msg.armed, msg.flight_mode, msg.nav_state, msg.landed_state
         s.status_known = True
+
+    def _on_offboard(self, msg) -> None:
+        """guidance/offboard (the gateway's validated stream): echoed as POSITION_TARGET_LOCAL_NED."""
+        self.snapshot.offboard_target = target_from_msg(msg)
+        self.snapshot.offboard_target_t = time.monotonic()
 
     def _on_sensors(self, msg) -> None:
         """perception/health: one status per sensor, OK or not (SYS_STATUS sensor bits)."""
@@ -227,8 +264,10 @@ class RosSide:
             for chunk in self.texts.messages(severity, text):  # whole, in MAVLink 2 chunks when long
                 self.router.send(chunk)
 
-    def ack(self, msg, result: int, reason: str = "") -> None:
-        self.router.send(M.MAVLink_command_ack_message(msg.command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
+    def ack(self, msg, result: int, reason: str = "", command: int | None = None) -> None:
+        """COMMAND_ACK to the sender of `msg` (for `command`; default its own), the reason as STATUSTEXT."""
+        self.router.send(M.MAVLink_command_ack_message(msg.command if command is None else command, result, 0, 0,
+                                                       msg.get_srcSystem(), msg.get_srcComponent()))
         if reason and result != M.MAV_RESULT_ACCEPTED:
             self.statustext(M.MAV_SEVERITY_WARNING, reason)
 
@@ -238,7 +277,7 @@ class RosSide:
         h.frame_id = "gcs"
         self.pub_heartbeat.publish(h)
 
-    def publish_link_stats(self, router, schedulers, link, now: float) -> None:
+    def publish_link_stats(self, router, schedulers, link, now: float, offboard=None) -> None:
         from diagnostic_msgs.msg import KeyValue
 
         array = self.DiagnosticArray()
@@ -248,6 +287,11 @@ class RosSide:
                                      hardware_id="gcs", message="GCS link up" if link.up else "no GCS heartbeat",
                                      values=[KeyValue(key="losses", value=str(link.losses)),
                                              KeyValue(key="since_heartbeat_s", value=f"{link.since_heartbeat_s or -1:.2f}")]))
+        if offboard is not None:  # offboard.OffboardDecoder: MAVLink setpoints used / dropped per reason
+            counts = {"accepted": offboard.accepted, **{f"rejected_{k}": v for k, v in sorted(offboard.rejected.items())}}
+            array.status.append(status_t(level=status_t.OK, name="bridge/offboard", hardware_id="mavlink",
+                                         message=f"{offboard.accepted} setpoints, {offboard.rejected.total()} dropped",
+                                         values=[KeyValue(key=k, value=str(v)) for k, v in counts.items()]))
         for name, endpoint in router.endpoints.items():
             st, ls = endpoint.stats, schedulers[name].link_stats(now)
             worst = max((r.max_delay_ratio for r in schedulers[name].stream_stats()), default=0.0)
@@ -361,6 +405,13 @@ class RosSide:
                 self.statustext(M.MAV_SEVERITY_WARNING, f"{spec.name} not applied: {why}")
 
         self._call(self._param_client(spec.node), request, done)
+
+    def publish_offboard(self, target: Target) -> None:
+        """A MAVLink offboard setpoint (offboard.OffboardDecoder) on offboard/trajectory_setpoint,
+        stamped now (receive time: MAVLink's time_boot_ms is the sender's clock)."""
+        out = target_to_msg(target)
+        out.header.stamp = self.node.get_clock().now().to_msg()
+        self.pub_offboard.publish(out)
 
     def publish_pilot(self, sp: PilotSetpoint) -> None:
         """A pilot setpoint (manual.PilotInput) as guidance/pilot at the ATTITUDE or RATE level."""

@@ -20,7 +20,18 @@ from enum import StrEnum
 from c4d_common.vehicle import MissionAction, Mode
 from c4d_common.vehicle import VehicleCommandId as Cmd
 
-from .frames import AUTO_LAND, AUTO_LOITER, AUTO_MISSION, AUTO_RTL, AUTO_TAKEOFF, PX4_ACRO, PX4_AUTO, PX4_POSCTL, PX4_STABILIZED
+from .frames import (
+    AUTO_LAND,
+    AUTO_LOITER,
+    AUTO_MISSION,
+    AUTO_RTL,
+    AUTO_TAKEOFF,
+    PX4_ACRO,
+    PX4_AUTO,
+    PX4_OFFBOARD,
+    PX4_POSCTL,
+    PX4_STABILIZED,
+)
 from .signing import mavlink
 
 M = mavlink
@@ -117,6 +128,13 @@ def translate(msg, ctx: Context) -> Action:
     return Action(Kind.ACK, M.MAV_RESULT_UNSUPPORTED, f"command {c} not supported")
 
 
+def translate_set_mode(msg, ctx: Context) -> Action:
+    """The action for a SET_MODE message (deprecated, still sent by some GCSs): the same as
+    MAV_CMD_DO_SET_MODE with base_mode and the PX4 custom mode's main / sub mode."""
+    custom = int(msg.custom_mode)
+    return _set_mode([float(msg.base_mode), float((custom >> 16) & 0xFF), float((custom >> 24) & 0xFF)], ctx)
+
+
 def _set_mode(p: list[float], ctx: Context) -> Action:
     if not (_finite(p[0], p[1]) and int(p[0]) & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED):
         return _deny("only custom modes (PX4 layout) are supported")
@@ -131,7 +149,7 @@ def _set_mode(p: list[float], ctx: Context) -> Action:
         if vehicle is not None:
             return Action(Kind.VEHICLE, fields={"command": vehicle})
         return _deny(f"AUTO sub mode {sub} not supported")
-    mode = {PX4_POSCTL: Mode.POSITION, PX4_STABILIZED: Mode.ATTITUDE, PX4_ACRO: Mode.RATE}.get(main)
+    mode = {PX4_POSCTL: Mode.POSITION, PX4_STABILIZED: Mode.ATTITUDE, PX4_ACRO: Mode.RATE, PX4_OFFBOARD: Mode.OFFBOARD}.get(main)
     if mode is None:
         return _deny(f"main mode {main} not supported")
     return Action(Kind.VEHICLE, fields={"command": Cmd.SET_MODE, "mode": mode})

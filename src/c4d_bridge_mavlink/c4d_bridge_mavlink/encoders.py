@@ -17,6 +17,7 @@ from c4d_common.vehicle import FailsafeAction, Landed, Mode, Nav
 
 from .frames import attitude_to_ned, compass_heading_deg, enu_to_ned, flu_to_frd, px4_custom_mode
 from .health_report import VehicleHealth, sensor_bits
+from .offboard import Target, position_target_local_ned
 from .signing import mavlink
 
 M = mavlink
@@ -25,6 +26,7 @@ CAPABILITIES = (M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | M.MAV_PROTOCOL_CAPABILIT
                 | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
                 | M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE)
 VERSION = (0 << 24) | (1 << 16) | (0 << 8) | 255  # 0.1.0 release (major, minor, patch, FIRMWARE_VERSION_TYPE)
+OFFBOARD_TARGET_FRESH_S = 0.5  # [s] the core's offboard stream timeout: an older target is not followed
 LANDED = {Landed.UNDEFINED: M.MAV_LANDED_STATE_UNDEFINED, Landed.ON_GROUND: M.MAV_LANDED_STATE_ON_GROUND,
           Landed.IN_AIR: M.MAV_LANDED_STATE_IN_AIR, Landed.TAKEOFF: M.MAV_LANDED_STATE_TAKEOFF,
           Landed.LANDING: M.MAV_LANDED_STATE_LANDING}
@@ -62,6 +64,8 @@ class Snapshot:
     mission_total: int = 0
     mission_state: int = 0  # MISSION_STATE enum
     comm_errors: int = 0
+    offboard_target: Target | None = None  # guidance/offboard, the stream the core follows in OFFBOARD
+    offboard_target_t: float = -math.inf  # monotonic time it was heard
     extra: dict = field(default_factory=dict)
 
 
@@ -81,7 +85,7 @@ def heartbeat(s: Snapshot) -> M.MAVLink_heartbeat_message | None:
     if not s.status_known or (s.nav_state == Nav.GOTO and not s.mission_known):
         return None
     base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED
-    if s.flight_mode == Mode.AUTO:
+    if s.flight_mode in (Mode.AUTO, Mode.OFFBOARD):  # as PX4 flags its OFFBOARD mode
         base |= M.MAV_MODE_FLAG_AUTO_ENABLED | M.MAV_MODE_FLAG_GUIDED_ENABLED
     if s.armed:
         base |= M.MAV_MODE_FLAG_SAFETY_ARMED
@@ -175,6 +179,14 @@ def home_position(s: Snapshot, now: float) -> M.MAVLink_home_position_message | 
     lat, lon, alt = s.home
     return M.MAVLink_home_position_message(_i(lat, 1e7, 0), _i(lon, 1e7, 0), _i(alt, 1000, 0), 0.0, 0.0, 0.0,
                                            [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, int(now * 1e6))
+
+
+def position_target(s: Snapshot, now: float) -> M.MAVLink_position_target_local_ned_message | None:
+    """POSITION_TARGET_LOCAL_NED: the offboard setpoint the core follows, only in OFFBOARD and while
+    the stream is live (heard within OFFBOARD_TARGET_FRESH_S); None (nothing sent) otherwise."""
+    if s.flight_mode != Mode.OFFBOARD or s.offboard_target is None or now - s.offboard_target_t > OFFBOARD_TARGET_FRESH_S:
+        return None
+    return position_target_local_ned(s.offboard_target, time_boot_ms(s, now))
 
 
 def extended_sys_state(s: Snapshot) -> M.MAVLink_extended_sys_state_message:

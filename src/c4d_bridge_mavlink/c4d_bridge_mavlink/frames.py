@@ -36,10 +36,25 @@ def flu_to_frd(v: Vec) -> Vec:
     return (v[0], -v[1], -v[2])
 
 
+def ned_to_enu(v: Vec) -> Vec:
+    """North-east-down → east-north-up (the same swap: the rotation is its own inverse)."""
+    return (v[1], v[0], -v[2])
+
+
+def frd_to_flu(v: Vec) -> Vec:
+    return (v[0], -v[1], -v[2])
+
+
 def attitude_to_ned(q_flu_enu: quat.Quat) -> quat.Quat:
     """Body FLU → ENU quaternion (w, x, y, z) to body FRD → NED, w ≥ 0."""
     q = quat.mul(quat.mul(Q_ENU_TO_NED, q_flu_enu), Q_FRD_TO_FLU)
     return q if q[0] >= 0 else (-q[0], -q[1], -q[2], -q[3])
+
+
+def attitude_to_enu(q_frd_ned: quat.Quat) -> quat.Quat:
+    """Body FRD → NED quaternion (w, x, y, z) to body FLU → ENU, w ≥ 0 (both fixed rotations are
+    180° turns, their own inverses up to sign, so this is attitude_to_ned's formula)."""
+    return attitude_to_ned(q_frd_ned)
 
 
 def compass_heading_deg(q_flu_enu: quat.Quat) -> float:
@@ -58,7 +73,8 @@ def px4_custom_mode(flight_mode: int, nav_state: int) -> int:
         sub = {Nav.TAKEOFF: AUTO_TAKEOFF, Nav.MISSION: AUTO_MISSION, Nav.HOLD: AUTO_LOITER, Nav.GOTO: AUTO_LOITER,
                Nav.RTL: AUTO_RTL, Nav.LAND: AUTO_LAND}.get(nav_state, AUTO_LOITER)
         return (PX4_AUTO << 16) | (sub << 24)
-    main = {Mode.RATE: PX4_ACRO, Mode.ATTITUDE: PX4_STABILIZED, Mode.POSITION: PX4_POSCTL, Mode.KILL: PX4_MANUAL}
+    main = {Mode.RATE: PX4_ACRO, Mode.ATTITUDE: PX4_STABILIZED, Mode.POSITION: PX4_POSCTL, Mode.KILL: PX4_MANUAL,
+            Mode.OFFBOARD: PX4_OFFBOARD}
     return main.get(flight_mode, PX4_POSCTL) << 16
 
 
