@@ -39,6 +39,7 @@ SLOW = 0.3  # [m/s] "slow" for arrival: the vehicle settles before the goal succ
 OFFBOARD_AFTER_S = 1.1  # [s] stream this long before asking for OFFBOARD (the core needs >= 1 s live)
 OFFBOARD_RETRY_S = 0.5  # [s] between OFFBOARD requests refused as "not yet"
 OFFBOARD_GIVE_UP_S = 5.0  # [s] of streaming without OFFBOARD after which the goal aborts
+LIMITS = VehicleLimits()  # the vehicle's default ceiling and speeds (as the mission node's go-to)
 SETTLE_S = 15.0  # [s] after the profile's end to get within the acceptance radius
 
 
@@ -77,7 +78,7 @@ def flight_refusal(vehicle: VehicleView | None) -> str | None:
 
 
 def leg_refusal(start: Point3, end: Point3, fence: Geofence, home: GeoOrigin,
-                limits: VehicleLimits = VehicleLimits()) -> str | None:
+                limits: VehicleLimits = LIMITS) -> str | None:
     """Why the straight leg start → end is refused: non-finite, outside the altitude band, beyond
     the fence's distance, or leaving its polygon (the rules of a MAVLink go-to, `check_goto`)."""
     issues = check_goto(Item("waypoint", LOCAL, *end), start, fence, home, limits)
@@ -85,7 +86,7 @@ def leg_refusal(start: Point3, end: Point3, fence: Geofence, home: GeoOrigin,
 
 
 def goal_refusal(target: Point3, vehicle: VehicleView | None, fence: Geofence | None,
-                 limits: VehicleLimits = VehicleLimits()) -> str | None:
+                 limits: VehicleLimits = LIMITS) -> str | None:
     """Why a GoTo goal to `target` (map ENU, m) is rejected, or None."""
     if not finite(*target):
         return "target position must be finite"
@@ -105,7 +106,7 @@ class PathPose:
 
 
 def path_refusal(frame_id: str, poses: Sequence[PathPose], vehicle: VehicleView | None, fence: Geofence | None,
-                 limits: VehicleLimits = VehicleLimits()) -> str | None:
+                 limits: VehicleLimits = LIMITS) -> str | None:
     """Why a FollowPath goal is rejected: empty, not in `map`, a non-finite pose, not flying, or a
     leg (from the vehicle to the first pose, then pose to pose) refused by the fence rules."""
     if not poses:
