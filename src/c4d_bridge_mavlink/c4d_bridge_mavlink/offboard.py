@@ -126,8 +126,16 @@ def _add(a: Vec, b: Vec) -> Vec:
 
 
 def _level(position: Vec, velocity: Vec, acceleration: Vec) -> Level:
-    for level, values in ((Level.POSITION, position), (Level.VELOCITY, velocity), (Level.ACCELERATION, acceleration)):
+    """The highest level with a field set; each axis of it must be usable (the gateway's rule:
+    POSITION needs a position or a velocity per axis, VELOCITY / ACCELERATION all three axes)."""
+    if any(math.isfinite(v) for v in position):
+        if not all(math.isfinite(p) or math.isfinite(v) for p, v in zip(position, velocity, strict=True)):
+            raise Rejected("mask", "offboard: type_mask leaves an axis without position or velocity")
+        return Level.POSITION
+    for level, values in ((Level.VELOCITY, velocity), (Level.ACCELERATION, acceleration)):
         if any(math.isfinite(v) for v in values):
+            if not all(math.isfinite(v) for v in values):
+                raise Rejected("mask", f"offboard: a {level.name.lower()} setpoint needs all three axes")
             return level
     raise Rejected("empty", "offboard: type_mask ignores position, velocity and acceleration")
 

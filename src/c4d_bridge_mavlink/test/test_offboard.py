@@ -57,7 +57,9 @@ def test_mavsdk_velocity_and_position_ned_become_enu_setpoints():
     assert t.velocity[2] == 1.0
     t = d.decode(local(M.MAV_FRAME_LOCAL_NED, 0b1100_0011_1111, a=(0.5, 0.0, -1.0)), HERE)
     assert t.level == Level.ACCELERATION and t.acceleration == (0.0, 0.5, 1.0)
-    assert d.accepted == 4 and not d.rejected
+    assert d.decode(local(M.MAV_FRAME_LOCAL_NED, 0b1101_1111_1100, 1.0, 2.0), HERE) is None  # z: no position, no velocity
+    assert d.decode(local(M.MAV_FRAME_LOCAL_NED, 0b1101_1111_0111, vx=1.0), HERE) is None  # velocity x only
+    assert d.accepted == 4 and d.rejected == {"mask": 2}
 
 
 def test_offset_and_body_frames_are_relative_to_the_vehicle():
