@@ -84,6 +84,9 @@ COLUMNS = {  # series: (topic, row function, column names)
     "stats": ("/gnc/executor_stats", _stats, ("load_mean", "load_max", "jitter_mean", "jitter_max", "jitter_p99",
                                              "overruns", "ticks", "cpu")),
 }
+# further topics of a series: the gateway's validated offboard stream is what the core follows in OFFBOARD (the
+# mission publishes in AUTO only), so the tracking plots cover both kinds of flight
+ALSO = {"/guidance/offboard": "setpoint"}
 KEEP = {"/gnc/schedule": "schedule", "/mission/plan": "plan"}  # last message kept whole
 EVENTS = {"/health/summary": "health", "/bridge/link_stats": "link"}  # every message kept whole
 
@@ -130,7 +133,7 @@ def _series(name: str, times: list[float], rows: list[tuple]) -> Series:
 
 def extract(contents: BagContents, progress: bool = True) -> FlightData:
     """One pass over the recording; returns every series the report uses."""
-    by_topic = {topic: name for name, (topic, _, _) in COLUMNS.items()}
+    by_topic = {topic: name for name, (topic, _, _) in COLUMNS.items()} | ALSO
     wanted = [t for t in (*by_topic, *KEEP, *EVENTS) if t in contents.topics]
     total = sum(contents.topics[t].count for t in wanted)
     decoders = Decoders()
