@@ -6,6 +6,8 @@
   `c4d_interfaces` — never each other: blocks meet on DDS topics and services only.
 - `c4d_bringup` may import shared packages and the configuration loaders of blocks
   (`CONFIG_LOADERS`), never a node module.
+- Client libraries (`c4d_client`) import only `c4d_interfaces` and ROS: a user's script needs nothing
+  else of c4d.
 - No import cycle between files of src/ (function-level imports count).
 Only runtime code (src/<pkg>/<pkg>/) is checked; tests may build harnesses across blocks.
 """
@@ -23,6 +25,7 @@ ROS_FREE = {"c4d_common", "c4d_sched"}
 SHARED = {"c4d_interfaces", "c4d_common", "c4d_ros", "c4d_sched"}
 BLOCKS = {"c4d_gnc", "c4d_sim", "c4d_mission", "c4d_health", "c4d_bridge_mavlink", "c4d_data", "c4d_offboard"}
 BRINGUP = "c4d_bringup"
+CLIENTS = {"c4d_client"}
 CONFIG_LOADERS = {"c4d_sim.sim_config"}
 ROS_CLIENT = {"rclpy", "rosidl_runtime_py", "builtin_interfaces", "c4d_interfaces", "std_msgs", "sensor_msgs"}
 PACKAGES = sorted(p.parent.name for p in SRC.glob("*/setup.py"))
@@ -72,6 +75,8 @@ def violations(package: str, files: list[Path] | None = None) -> list[str]:
                 out.append(f"{where}: {package} is ROS-free and depends on no other c4d package")
             elif package == "c4d_ros" and top.startswith("c4d_") and top not in {"c4d_common", "c4d_interfaces"}:
                 out.append(f"{where}: c4d_ros may use only c4d_common and c4d_interfaces")
+            elif package in CLIENTS and top != "c4d_interfaces" and top.startswith("c4d_"):
+                out.append(f"{where}: client libraries import only c4d_interfaces and ROS")
             elif package in BLOCKS and top in BLOCKS:
                 out.append(f"{where}: block packages never import each other (meet on DDS)")
             elif package == BRINGUP and top in BLOCKS and not any(name == m or name.startswith(m + ".")
@@ -87,7 +92,8 @@ def test_package_imports_follow_the_layering(package: str) -> None:
 
 
 def test_every_python_package_has_a_layer() -> None:
-    assert set(PACKAGES) <= SHARED | BLOCKS | {BRINGUP}, f"unclassified package(s): {set(PACKAGES) - SHARED - BLOCKS - {BRINGUP}}"
+    layers = SHARED | BLOCKS | CLIENTS | {BRINGUP}
+    assert set(PACKAGES) <= layers, f"unclassified package(s): {set(PACKAGES) - layers}"
 
 
 def test_no_import_cycle_between_files() -> None:
@@ -154,5 +160,10 @@ def test_the_checker_sees_a_cross_block_import(tmp_path: Path) -> None:
     try:
         assert any("never import each other" in v for v in violations("c4d_health", [planted]))
         assert any("ROS-free" in v for v in violations("c4d_common", [planted]))
+        client = tmp_path / "c4d_client" / "c4d_client" / "planted.py"
+        client.parent.mkdir(parents=True)
+        client.write_text("import rclpy\nfrom c4d_interfaces.msg import VehicleStatus\nfrom c4d_ros.manifest import STATUS\n")
+        assert [v.split(": ", 1)[1] for v in violations("c4d_client", [client])] == \
+            ["client libraries import only c4d_interfaces and ROS"] * 2  # `from c4d_ros.manifest import STATUS` = 2 names
     finally:
         SRC = saved
