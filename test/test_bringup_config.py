@@ -43,7 +43,8 @@ def error_of(doc) -> str:
 def test_bundled_sitl_config_is_the_whole_graph():
     config = load_system_config(SITL)
     assert default_config_path().read_text() == SITL.read_text()  # the installed copy is this one
-    assert config.names == ["sim", "perception", "navigation", "core", "mission", "payload", "health", "bridge", "recorder"]
+    assert config.names == ["sim", "perception", "navigation", "core", "mission", "payload", "health", "bridge", "offboard",
+                            "recorder"]
     assert [n.name for n in config.nodes if n.critical] == ["sim", "perception", "navigation", "core"]
     assert all(n.restart == "always" for n in config.nodes if not n.critical)
     assert config.node("core").parameters == {"rt_priority": 60}  # the flight-critical chain is real-time (docs/dds.md)
@@ -324,7 +325,7 @@ def test_board_config_prepares_composed_processes(tmp_path):
     specs = prepare_run(config, tmp_path / "run")
     assert [(s.name, s.members) for s in specs] == [
         ("sim", ()), ("sensing", ("perception", "navigation")), ("core", ()),
-        ("ground", ("mission", "payload", "health", "bridge", "recorder"))]
+        ("ground", ("mission", "payload", "health", "bridge", "offboard", "recorder"))]
     cpus = sorted(__import__("os").sched_getaffinity(0))
     by_name = {s.name: s for s in specs}
     assert by_name["core"].placement.cpu_affinity == (cpus[-1],)  # alone on the last CPU
@@ -333,9 +334,9 @@ def test_board_config_prepares_composed_processes(tmp_path):
     assert by_name["sensing"].critical and by_name["sensing"].restart.mode == "never"
     ground = by_name["ground"]
     assert ground.argv[0] == installed_executable("c4d_bringup", "container")
-    assert ground.argv[1:9] == ("--group", "ground", "c4d_mission/mission", "c4d_mission/payload", "c4d_health/health",
-                                "c4d_bridge_mavlink/bridge", "c4d_data/recorder", "--ros-args")
-    params = yaml.safe_load(Path(ground.argv[-1]).read_text())  # keyed by node: one rclpy context, five nodes
+    assert ground.argv[1:10] == ("--group", "ground", "c4d_mission/mission", "c4d_mission/payload", "c4d_health/health",
+                                 "c4d_bridge_mavlink/bridge", "c4d_offboard/offboard", "c4d_data/recorder", "--ros-args")
+    params = yaml.safe_load(Path(ground.argv[-1]).read_text())  # keyed by node: one rclpy context, six nodes
     assert set(params) == {"/mission", "/payload", "/bridge", "/recorder"}  # health has no parameters here
     assert params["/recorder"]["ros__parameters"] == {"output_dir": str(tmp_path / "run" / "flights")}
     with pytest.raises(ConfigError, match="compose .process composition. is supported by c4d up / c4d fly only"):

@@ -1,7 +1,8 @@
 """The live graph is the interface manifest: `c4d up` starts the whole SITL graph, a test node reads
 what DDS sees (topic names and types, publishing and subscribing nodes, the QoS every publisher
-offers, the services each node serves and calls) and the test fails with a line diff on any
-difference from `c4d_ros.manifest`.
+offers, the services each node serves and calls, the actions each node serves) and the test fails with
+a line diff on any difference from `c4d_ros.manifest`. An action's hidden topics and services
+(`<action>/_action/...`) are compared as the action, not one by one.
 
 Why: the manifest is where names and QoS come from and what docs/ARCHITECTURE.md is generated
 from; this test keeps it the truth. Hidden LatestSampler side nodes (`_<owner>_samples`) count as
@@ -24,6 +25,7 @@ from pathlib import Path
 import pytest
 import yaml
 from c4d_testing import installed_executable, spin_for
+from rclpy.action import get_action_server_names_and_types_by_node
 
 from c4d_ros.manifest import MANIFEST, side_node_name
 
@@ -32,7 +34,8 @@ INFRASTRUCTURE_TOPICS = {"/rosout", "/parameter_events"}
 NODE_SERVICES = {"describe_parameters", "get_parameter_types", "get_parameters", "list_parameters", "set_parameters",
                  "set_parameters_atomically", "get_type_description"}  # every rclpy node has these
 TEST_NODE_PREFIXES = ("c4d_test", "_c4d_test_samples_")
-SETTLE_S = 30.0  # after the nine nodes are up: the recorder subscribes to topics as it discovers them
+ACTION_INFIX = "/_action/"  # an action's own topics and services: compared as the action
+SETTLE_S = 30.0  # after the ten nodes are up: the recorder subscribes to topics as it discovers them
 EMPTY_MEANS_NONE = {  # parameters whose empty value in force means "none" (no file behind it)
     "/mission": {"plan_file"}, "/health": {"link_topic", "unwatched_nodes"}, "/bridge": {"signing_key_file"},
     "/recorder": {"include", "exclude"},
@@ -76,8 +79,8 @@ class GraphReader:
                 continue
             pubs = [i for i in self.node.get_publishers_info_by_topic(name) if not self.harness(i.node_name)]
             subs = [i for i in self.node.get_subscriptions_info_by_topic(name) if not self.harness(i.node_name)]
-            if not pubs and not subs:
-                continue  # only the test's own endpoints (none today)
+            if not pubs and not subs or ACTION_INFIX in name:
+                continue  # only the test's own endpoints, or an action's topics
             out.add(f"topic {name}: type {', '.join(sorted(types))}")
             out.add(f"topic {name}: producers {', '.join(sorted({self.who(i.node_name) for i in pubs}))}")
             out.add(f"topic {name}: consumers {', '.join(sorted({self.who(i.node_name) for i in subs}))}")
@@ -93,10 +96,13 @@ class GraphReader:
             for role, listing in (("server", self.node.get_service_names_and_types_by_node),
                                   ("client", self.node.get_client_names_and_types_by_node)):
                 for service, types in listing(node_name, namespace):
-                    if service.rsplit("/", 1)[-1] in NODE_SERVICES:
+                    if service.rsplit("/", 1)[-1] in NODE_SERVICES or ACTION_INFIX in service:
                         continue
                     out.add(f"service {service}: type {', '.join(sorted(types))}")
                     out.add(f"service {service}: {role} {who}")
+            for action, types in get_action_server_names_and_types_by_node(self.node, node_name, namespace):
+                out.add(f"action {action}: type {', '.join(sorted(types))}")
+                out.add(f"action {action}: server {who}")
         return sorted(out)
 
 
@@ -108,7 +114,9 @@ def expected_lines(with_depth: bool) -> list[str]:
         name = absolute(t.name)
         out.add(f"topic {name}: type {t.type}")
         out.add(f"topic {name}: producers {', '.join(sorted(t.producers))}")
-        out.add(f"topic {name}: consumers {', '.join(sorted(t.all_consumers))}")
+        # the recorder subscribes to a topic once it has a publisher: not to a public input nobody sends
+        consumers = t.all_consumers if t.producers else t.consumers
+        out.add(f"topic {name}: consumers {', '.join(sorted(consumers))}")
         q = t.qos
         for producer in t.producers:
             depth = q.depth if with_depth else None
@@ -118,12 +126,16 @@ def expected_lines(with_depth: bool) -> list[str]:
         out.add(f"service {name}: type {s.type}")
         out.add(f"service {name}: server {s.server}")
         out |= {f"service {name}: client {c}" for c in s.clients}
+    for a in MANIFEST.actions:
+        name = absolute(a.name)
+        out.add(f"action {name}: type {a.type}")
+        out.add(f"action {name}: server {a.server}")
     return sorted(out)
 
 
 @pytest.fixture(scope="module")
 def graph_up(module_processes, ros_node, tmp_path_factory):
-    """`c4d up` with the bundled board.yaml (bridge on a free port), all nine nodes discovered. The
+    """`c4d up` with the bundled board.yaml (bridge on a free port), all ten nodes discovered. The
     board layout — sitl.yaml's nodes and parameters, composed into 4 processes, pinned and niced
     (issue 16) — is the one that could change the graph: composed nodes share one rclpy context
     and a parameters file keyed by node name. sitl.yaml's one-process-per-node layout runs the same
@@ -146,7 +158,7 @@ def graph_up(module_processes, ros_node, tmp_path_factory):
 
 
 def test_board_layout_is_fewer_processes_pinned_and_niced(graph_up):
-    """board.yaml: 9 nodes in 4 processes (supervisor.json); each process's threads on the CPUs
+    """board.yaml: 10 nodes in 4 processes (supervisor.json); each process's threads on the CPUs
     and at the niceness the YAML gives (/proc): the core alone on the last CPU at SCHED_FIFO with its
     memory locked, the ground group niced."""
     import json
@@ -155,7 +167,7 @@ def test_board_layout_is_fewer_processes_pinned_and_niced(graph_up):
     state = json.loads((graph_up.run_dir / "supervisor.json").read_text())["nodes"]
     assert {name: tuple(p["members"]) for name, p in state.items()} == {
         "sim": ("sim",), "sensing": ("perception", "navigation"), "core": ("core",),
-        "ground": ("mission", "payload", "health", "bridge", "recorder")}
+        "ground": ("mission", "payload", "health", "bridge", "offboard", "recorder")}
     assert sorted(n for p in state.values() for n in p["members"]) == sorted(MANIFEST.nodes)
     cpus = sorted(os.sched_getaffinity(0))
     others = set(cpus[:-1] or cpus)

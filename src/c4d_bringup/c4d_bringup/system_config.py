@@ -68,6 +68,7 @@ CATALOGUE: dict[str, tuple[str, str, bool]] = {
     "payload": ("c4d_mission", "payload", False),
     "health": ("c4d_health", "health", False),
     "bridge": ("c4d_bridge_mavlink", "bridge", False),
+    "offboard": ("c4d_offboard", "offboard", False),
     "recorder": ("c4d_data", "recorder", False),
 }
 PLATFORMS = ("sitl", "hardware")

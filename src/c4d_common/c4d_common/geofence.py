@@ -4,6 +4,8 @@ A `Geofence` (c4d_common.plan) holds an inclusion polygon in geodetic coordinate
 above home and a maximum distance from home (each optional). `LocalFence` converts it once to
 the local ENU frame of a home position and answers the two questions every user asks: is this
 point inside (`breach`), and does the straight leg between two points stay inside (`leg_inside`)?
+`clamp` moves a point that is outside to the nearest point inside (the offboard gateway's
+treatment of external position targets beyond the fence).
 """
 
 from __future__ import annotations
@@ -53,6 +55,31 @@ def _segments_intersect(p1: Point2, p2: Point2, q1: Point2, q2: Point2) -> bool:
     return (d1 > 0) != (d2 > 0) and (d3 > 0) != (d4 > 0)
 
 
+def nearest_on_segment(p: Point2, a: Point2, b: Point2) -> Point2:
+    """The point of the segment a–b closest to `p`."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    length2 = dx * dx + dy * dy
+    t = 0.0 if length2 == 0.0 else max(0.0, min(1.0, ((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / length2))
+    return (a[0] + t * dx, a[1] + t * dy)
+
+
+def pull_inside(point: Point2, polygon: list[Point2], margin: float) -> Point2:
+    """A point `margin` inside `polygon` next to the boundary point nearest to `point` (an outside
+    point). The nudge goes on along point → boundary (inward at an edge); at an acute vertex where
+    that leaves the polygon, towards the vertices' centroid; failing both, the boundary point."""
+    edges = zip(polygon, polygon[1:] + polygon[:1], strict=True)
+    nearest = min((nearest_on_segment(point, a, b) for a, b in edges), key=lambda q: math.dist(q, point))
+    centroid = (sum(v[0] for v in polygon) / len(polygon), sum(v[1] for v in polygon) / len(polygon))
+    for source, target in ((point, nearest), (nearest, centroid)):
+        dx, dy = target[0] - source[0], target[1] - source[1]
+        norm = math.hypot(dx, dy)
+        if norm > 0.0:
+            candidate = (nearest[0] + margin * dx / norm, nearest[1] + margin * dy / norm)
+            if point_inside(candidate, polygon):
+                return candidate
+    return nearest
+
+
 def leg_inside(a: Point2, b: Point2, polygon: list[Point2]) -> bool:
     """Both ends inside `polygon` and the segment a–b crosses none of its edges."""
     if not (point_inside(a, polygon) and point_inside(b, polygon)):
@@ -77,6 +104,22 @@ class LocalFence:
     def leg_inside(self, a: Point2, b: Point2) -> bool:
         """The horizontal leg a → b stays inside the polygon (True when there is none)."""
         return not self.polygon or leg_inside(a, b, list(self.polygon))
+
+    def clamp(self, position: Point3, margin: float = 0.1) -> Point3:
+        """The point inside the fence nearest to `position` (`position` itself when inside): onto
+        the polygon, then within max_distance of home, then below the ceiling, each `margin` [m]
+        inside its limit so that the result passes `breach`. Why: an external position target
+        beyond the fence is flown to the fence instead of being refused (the stream keeps going)."""
+        x, y, z = position
+        if self.polygon and not point_inside((x, y), list(self.polygon)):
+            x, y = pull_inside((x, y), list(self.polygon), margin)
+        distance = math.hypot(x, y)
+        if self.max_distance > 0 and distance > self.max_distance:
+            scale = max(self.max_distance - margin, 0.0) / distance
+            x, y = x * scale, y * scale
+        if self.max_altitude > 0 and z > self.max_altitude:
+            z = self.max_altitude - margin
+        return (x, y, z)
 
     def breach(self, position: Point3) -> Breach | None:
         """The first rule `position` violates (polygon, then ceiling, then distance), or None."""

@@ -97,7 +97,7 @@ P_HEALTH = Topic("perception/health", "diagnostic_msgs/msg/DiagnosticArray", STA
                  ("health", "mission", "bridge"), "sensor health (bridge: SYS_STATUS sensor bits)")
 # --- navigation ---------------------------------------------------------------------------
 NAV_STATE = Topic("navigation/state", "c4d_interfaces/msg/VehicleState", ST, "500 Hz (per IMU sample)", ("navigation",),
-                  ("core", "mission", "payload", "health", "bridge"), "full estimated state")
+                  ("core", "mission", "payload", "health", "bridge", "offboard"), "full estimated state")
 NAV_ODOMETRY = Topic("navigation/odometry", "nav_msgs/msg/Odometry", ST, "50 Hz (parameter)", ("navigation",), ("health",),
                      "the estimate as standard odometry in `map` (tools, the c4d CLI); health: navigation's liveness")
 # --- GNC core -----------------------------------------------------------------------------
@@ -115,7 +115,7 @@ ACTUATORS = Topic("control/actuators", "c4d_interfaces/msg/ActuatorCommand", ST,
                   "the core is the only publisher")
 STATUS = Topic("vehicle/status", "c4d_interfaces/msg/VehicleStatus", L, "on change + 5 Hz (health's heartbeat)",
                ("core",),
-               ("navigation", "mission", "payload", "health", "bridge"), "armed, mode, landed state, failsafe")
+               ("navigation", "mission", "payload", "health", "bridge", "offboard"), "armed, mode, landed state, failsafe")
 EXECUTOR_STATS = Topic("gnc/executor_stats", "c4d_interfaces/msg/ExecutorStats", STATS, "1 Hz", ("core",),
                        ("health", "bridge"), "cyclic-executive profiler")
 SCHEDULE = Topic("gnc/schedule", "c4d_interfaces/msg/ScheduleTable", L, "once", ("core",), (), "static schedule (GCD+)")
@@ -123,7 +123,7 @@ SCHEDULE = Topic("gnc/schedule", "c4d_interfaces/msg/ScheduleTable", L, "once", 
 MISSION_STATE = Topic("mission/state", "c4d_interfaces/msg/MissionState", L, "on change + 5 Hz", ("mission",),
                       ("payload", "health", "bridge"), "health: mission's liveness")
 MISSION_PLAN = Topic("mission/plan", "c4d_interfaces/msg/MissionPlan", L, "on change", ("mission",),
-                     ("payload", "health", "bridge"))
+                     ("payload", "health", "bridge", "offboard"), "offboard: the geofence external targets are clamped to")
 CAPTURES = Topic("payload/captures", "c4d_interfaces/msg/CaptureEvent", CMD, "per capture", ("payload",), ("bridge",))
 GIMBAL = Topic("payload/gimbal", "geometry_msgs/msg/Vector3Stamped", S, "50 Hz while a mission runs", ("payload",), (),
                "roll, pitch, yaw [rad], body frame")
@@ -169,7 +169,7 @@ TOPICS: tuple[Topic, ...] = (
 # --- services -----------------------------------------------------------------------------
 CORE_COMMAND = Service("gnc/command", "c4d_interfaces/srv/VehicleCommand", "core", ("mission", "health"),
                        "ARM, DISARM, TAKEOFF, LAND, RETURN_TO_LAUNCH, HOLD, SET_MODE, GOTO; applied at the next tick")
-VEHICLE_COMMAND = Service("vehicle/command", "c4d_interfaces/srv/VehicleCommand", "mission", ("bridge", "health"),
+VEHICLE_COMMAND = Service("vehicle/command", "c4d_interfaces/srv/VehicleCommand", "mission", ("bridge", "health", "offboard"),
                           "every vehicle command incl. RTL; also the c4d CLI")
 MISSION_UPLOAD = Service("mission/upload", "c4d_interfaces/srv/UploadMission", "mission", ("bridge",),
                          "validate and accept a plan; also the c4d CLI")
