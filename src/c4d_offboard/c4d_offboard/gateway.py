@@ -130,12 +130,6 @@ def normalised(sp: Setpoint) -> Setpoint:
     return replace(sp, orientation=(w / n, x / n, y / n, z / n))
 
 
-def yaw_of(q: Quat) -> float:
-    """Heading [rad] of a body → world quaternion (ENU: 0 = east, CCW positive)."""
-    w, x, y, z = q
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
 def body_to_world(v: Vec3, yaw: float) -> Vec3:
     """A FLU body-frame velocity in ENU, rotated by the heading only (z stays vertical): what a
     `base_link` twist means for a multirotor — forward/left in the horizontal plane."""

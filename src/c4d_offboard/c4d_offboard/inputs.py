@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import math
 
+from c4d_common.quat import yaw_of
 from c4d_interfaces.msg import GuidanceSetpoint
 
-from .gateway import BODY_FRAME, NAN, WORLD_FRAME, Level, Reject, Setpoint, body_to_world, yaw_of
+from .gateway import BODY_FRAME, NAN, WORLD_FRAME, Level, Reject, Setpoint, body_to_world
 
 
 def _stamp_s(header) -> float:

@@ -19,6 +19,7 @@ import math
 import sys
 import threading
 import time
+from dataclasses import asdict
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -28,6 +29,7 @@ from rcl_interfaces.msg import SetParametersResult
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.geofence import LocalFence
 from c4d_common.plan import Geofence, PlanError
+from c4d_common.quat import yaw_of
 from c4d_interfaces.msg import GuidanceSetpoint, MissionPlan, VehicleState
 from c4d_ros import manifest as m
 from c4d_ros.component import ComponentError, Host
@@ -37,7 +39,7 @@ from c4d_ros.plan_msgs import plan_from_msg
 
 from . import inputs
 from .action_servers import ActionServers
-from .gateway import Decision, Gateway, Limits, Reject, Setpoint, yaw_of
+from .gateway import Decision, Gateway, Limits, Reject, Setpoint
 
 PARAMETERS = {
     "max_age_s": Spec(0.5, "external setpoints stamped longer ago than this are refused as stale [s]", 0.01, 10.0),
@@ -192,7 +194,7 @@ class OffboardNode:
         """Apply max_age_s / max_future_s / max_rate_hz / live_timeout_s at once (rclpy has already
         refused values outside their descriptor's range or of another type, with the reason)."""
         with self.lock:
-            values = dict(self.gateway.limits.__dict__)
+            values = asdict(self.gateway.limits)
         for p in params:
             if p.name in PARAMETERS:
                 if not math.isfinite(float(p.value)):
