@@ -1,16 +1,16 @@
-"""Generate the QoS, topic and service tables of docs/ARCHITECTURE.md from the code.
+"""Generate the QoS, topic, service and action tables of docs/ARCHITECTURE.md from the code.
 
 Why: the tables are the contract newcomers read; written by hand they drifted from the code (a
 `state` deadline that was never set, topics that did not exist). Now the QoS table comes from
 `c4d_ros.qos.Profile` (the QoSProfile objects the nodes use, so it states what DDS is told) and
-the topic and service tables from `c4d_ros.manifest`, which `test/test_interface_manifest.py`
-checks against the live graph.
+the topic, service and action tables from `c4d_ros.manifest`, which
+`test/test_interface_manifest.py` checks against the live graph.
 
     python tools/interface_docs.py          rewrite the tables between the marker comments
     python tools/interface_docs.py --check  exit 1 (and name the stale tables) when the docs differ
 
 Each table sits between `<!-- BEGIN generated: NAME -->` and `<!-- END generated: NAME -->`
-(NAME = qos, topics, services); everything outside the markers is left as written.
+(NAME = qos, topics, services, actions); everything outside the markers is left as written.
 """
 
 from __future__ import annotations
@@ -80,7 +80,13 @@ def services_table() -> str:
     return markdown_table(("service", "type", "rate", "server", "clients", "notes"), rows)
 
 
-TABLES: dict[str, Callable[[], str]] = {"qos": qos_table, "topics": topics_table, "services": services_table}
+def actions_table() -> str:
+    rows = [(f"`{a.name}`", short_type(a.type), a.server, a.about) for a in MANIFEST.actions]
+    return markdown_table(("action", "type", "server", "notes"), rows)
+
+
+TABLES: dict[str, Callable[[], str]] = {"qos": qos_table, "topics": topics_table, "services": services_table,
+                                        "actions": actions_table}
 
 
 class MarkerError(ValueError):
