@@ -220,6 +220,33 @@ class PathProfile:
         return sum(1 for c in self.cumulative[1:] if c <= s + 1e-9)
 
 
+@dataclass(frozen=True)
+class Brake:
+    """Stop along the current velocity at constant deceleration: the setpoints a cancelled goal
+    streams before it commands HOLD. Why: HOLD captures where the vehicle is, so a vehicle at
+    cruise speed would overshoot that point by v²/2a and fly back (seen: still > 0.3 m/s 2 s after
+    a cancel at 3 m/s); braking first makes HOLD capture a vehicle that has already stopped."""
+
+    start: Point3
+    velocity: Point3
+    decel: float  # [m/s^2]
+
+    @property
+    def duration(self) -> float:
+        return math.sqrt(sum(v * v for v in self.velocity)) / self.decel
+
+    def at(self, t: float) -> ProfilePoint:
+        speed = math.sqrt(sum(v * v for v in self.velocity))
+        t = min(max(t, 0.0), self.duration)
+        if speed <= 0:
+            return ProfilePoint(self.start, (0.0, 0.0, 0.0), 0, 0.0, True)
+        s = speed * t - 0.5 * self.decel * t * t
+        left = speed - self.decel * t
+        position = tuple(p + s * v / speed for p, v in zip(self.start, self.velocity, strict=True))
+        velocity = tuple(left * v / speed for v in self.velocity)
+        return ProfilePoint(position, velocity, 0, s, t >= self.duration)  # type: ignore[arg-type]
+
+
 # ------------------------------------------------------------------------------ goal runs
 @dataclass(frozen=True)
 class Outcome:

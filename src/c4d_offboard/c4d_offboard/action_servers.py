@@ -10,7 +10,8 @@ Thin rclpy over `action_logic` (what is refused, the profile, when a goal ends):
   refused meanwhile), stream a position + velocity feed-forward profile at 50 Hz through the
   gateway (`publish_action_setpoint`, published on guidance/offboard), ask for OFFBOARD after
   1.1 s of stream, fly once OFFBOARD is in force, and at the end (success or cancel) command
-  HOLD (the core holds in AUTO where the vehicle is) and release the claim.
+  HOLD (the core holds in AUTO where the vehicle is) and release the claim. A cancel first brakes
+  along the current velocity (action_brake_decel) so HOLD captures a vehicle already stopped.
 
 One goal at a time, of any of the four actions: a goal that arrives while another runs is
 rejected (reason logged) — cancel the running one first. Why not preempt: a preempting goal
@@ -59,6 +60,7 @@ from c4d_ros.params import Spec, declare
 from c4d_ros.plan_msgs import plan_from_msg
 
 from .action_logic import (
+    Brake,
     LandTracker,
     OffboardRun,
     Outcome,
@@ -77,11 +79,14 @@ from .sink import SetpointSink
 STREAM_HZ = 50.0  # setpoints per second while a GoTo / FollowPath flies (the gateway's limit is 100 Hz)
 WATCH_HZ = 10.0  # status checks (and feedback) per second during take-off and landing
 FEEDBACK_EVERY = 5  # streamed setpoints per feedback message (10 Hz)
+BRAKE_SETTLE_S = 0.3  # [s] of streaming the stop point after a cancel's braking, before HOLD
 REPLY_S = 5.0  # [s] wait for a vehicle/command reply
 TAKEOFF_TIMEOUT_S, LAND_TIMEOUT_S = 90.0, 120.0  # [s] plus the altitude at 1 m/s / 0.3 m/s
 
 PARAMS = {
     "action_accel": Spec(1.0, "acceleration / deceleration of the GoTo and FollowPath profiles [m/s^2]", 0.1, 5.0),
+    "action_brake_decel": Spec(2.5, "deceleration with which a cancelled GoTo / FollowPath stops before it holds "
+                                    "[m/s^2]", 0.5, 8.0),
     "action_max_vertical_speed": Spec(1.5, "GoTo / FollowPath speed is lowered so no leg climbs or sinks faster "
                                            "[m/s]", 0.1, 5.0),
 }
@@ -96,6 +101,7 @@ class ActionServers:
         self.log = node.get_logger()
         values = {name: declare(node, name, spec) for name, spec in PARAMS.items()}
         self.accel, self.vertical_speed = values["action_accel"], values["action_max_vertical_speed"]
+        self.brake_decel = values["action_brake_decel"]
         self.group = ReentrantCallbackGroup()
         self.side = side_node if side_node is not None else rclpy.create_node(side_node_name("offboard"),
                                                                               context=node.context)
@@ -311,6 +317,8 @@ class ActionServers:
                 position = _xyz(s.position)
                 speed = math.sqrt(s.velocity.x ** 2 + s.velocity.y ** 2 + s.velocity.z ** 2)
                 if goal_handle.is_cancel_requested:
+                    if self._mode() == Mode.OFFBOARD:
+                        self._brake(Brake(position, _xyz(s.velocity), self.brake_decel), yaw(run.last))
                     self._hold(f"cancelling {name}")
                     return Outcome(False, "cancelled: holding"), position, True, run
                 outcome = None
@@ -333,6 +341,15 @@ class ActionServers:
             return Outcome(False, "shutting down"), position, False, run
         finally:
             self.sink.claim(None)
+
+    def _brake(self, brake: Brake, yaw: float) -> None:
+        """Stream `brake` until the vehicle should have stopped (or OFFBOARD is left)."""
+        start = time.monotonic()
+        for _ in _paced(STREAM_HZ, self.node.context):
+            t = time.monotonic() - start
+            self.sink.publish_action_setpoint(self._setpoint(brake.at(t), yaw))
+            if t >= brake.duration + BRAKE_SETTLE_S or self._mode() != Mode.OFFBOARD:
+                return
 
     def _setpoint(self, sp: ProfilePoint, yaw: float) -> Any:
         msg = GuidanceSetpoint(control_level=GuidanceSetpoint.LEVEL_POSITION, yaw=yaw, yaw_rate=math.nan,

@@ -10,6 +10,7 @@ from c4d_common.geodesy import GeoOrigin
 from c4d_common.plan import Geofence
 from c4d_common.vehicle import Landed, Mode, Nav
 from c4d_offboard.action_logic import (
+    Brake,
     OFFBOARD_AFTER_S,
     OFFBOARD_GIVE_UP_S,
     LandTracker,
@@ -157,3 +158,13 @@ def test_land_tracker():
     t = LandTracker()
     t.update(True, Landed.LANDING, Mode.AUTO, Nav.LAND)
     assert not t.update(True, Landed.IN_AIR, Mode.OFFBOARD, Nav.NONE).success
+
+
+def test_brake_stops_along_the_velocity():
+    b = Brake((0.0, 0.0, 5.0), (3.0, 4.0, 0.0), decel=2.5)
+    assert b.duration == pytest.approx(2.0)
+    assert b.at(0.0).velocity == pytest.approx((3.0, 4.0, 0.0)) and not b.at(0.0).done
+    stop = b.at(5.0)
+    assert stop.done and stop.velocity == pytest.approx((0.0, 0.0, 0.0))
+    assert stop.position == pytest.approx((3.0, 4.0, 5.0))  # 5 m = v²/2a along (0.6, 0.8)
+    assert Brake((1.0, 2.0, 3.0), (0.0, 0.0, 0.0), 2.0).at(0.5).position == (1.0, 2.0, 3.0)
