@@ -1,7 +1,8 @@
 """`ros2 run c4d_health health` — monitors, diagnostics, failsafe requests.
 
 Monitors (10 Hz): node liveliness (each watched node's periodic topic silent longer than
-`node_timeout_s` of the monitor's own running time: dead if also gone from the ROS graph,
+`node_timeout_s` of the monitor's own running time — the offboard gateway's 1 Hz offboard/status
+2.5 s, once heard: dead if also gone from the ROS graph,
 stalled if still in it — the graph sampled once a second: liveness.py), GNSS health
 (perception/health), estimator validity (navigation/state), battery state of charge
 (sensors/battery), geofence (mission/plan against the position),
@@ -59,6 +60,10 @@ WATCHED = {  # node: topic that proves it alive (>= 5 Hz)
     "mission": manifest.MISSION_STATE,
     "sim": manifest.BATTERY,
 }
+# the offboard gateway: its status comes at 1 Hz (not >= 5 Hz), so its own timeout; optional in
+# a graph (judged only once heard: a graph without it is not a graph with a dead node)
+GATEWAY = ("offboard", manifest.OFFBOARD_STATUS)
+GATEWAY_TIMEOUT_S = 2.5  # 2.5 periods of offboard/status
 IN_AIR = (Landed.IN_AIR, Landed.TAKEOFF, Landed.LANDING)
 OFFBOARD_STREAM = "offboard"  # the liveness name of the guidance/offboard stream
 PARAMETERS = {
@@ -66,8 +71,8 @@ PARAMETERS = {
                         empty=lambda: default_policy()),
     "link_topic": Spec("", f"ground-link heartbeat topic (std_msgs/Header) [topic name], lost after {LINK_TIMEOUT_S:g} s "
                        f"of silence; empty: not watched; the MAVLink bridge's is {manifest.GCS_HEARTBEAT.name}", read_only=True),
-    "unwatched_nodes": Spec([""], f"nodes whose liveness is not monitored [node names among {', '.join(WATCHED)}]",
-                            read_only=True),
+    "unwatched_nodes": Spec([""], f"nodes whose liveness is not monitored [node names among {', '.join(WATCHED)}, "
+                            f"{GATEWAY[0]}]", read_only=True),
 }
 
 
@@ -83,17 +88,20 @@ class HealthConfig:
     policy: FailsafePolicy
     link_topic: str
     watched: dict[str, manifest.Topic]
+    watch_gateway: bool = True
 
     @classmethod
     def declare(cls, node: Any) -> HealthConfig:
         """Declare the parameters on `node`; ParameterError / PolicyError name what is wrong."""
         values = declare_all(node, PARAMETERS)
         unwatched = {name for name in values["unwatched_nodes"] if name}
-        if unwatched - set(WATCHED):
-            raise ParameterError(f"parameter 'unwatched_nodes': unknown node(s) {', '.join(sorted(unwatched - set(WATCHED)))} "
-                                 f"(watched: {', '.join(WATCHED)})")
+        known = {*WATCHED, GATEWAY[0]}
+        if unwatched - known:
+            raise ParameterError(f"parameter 'unwatched_nodes': unknown node(s) {', '.join(sorted(unwatched - known))} "
+                                 f"(watched: {', '.join(sorted(known))})")
         policy = FailsafePolicy.from_yaml(values["policy_file"] or default_policy())
-        return cls(policy, values["link_topic"], {n: t for n, t in WATCHED.items() if n not in unwatched})
+        return cls(policy, values["link_topic"], {n: t for n, t in WATCHED.items() if n not in unwatched},
+                   GATEWAY[0] not in unwatched)
 
 
 def estimate_of(msg: VehicleState) -> Estimate:
@@ -114,6 +122,9 @@ class HealthNode:
         self.node, self.config = node, config
         self.arbiter = FailsafeArbiter(config.policy)
         self.liveness = LivenessMonitor(config.watched, config.policy.node_timeout_s, TICK_S, self._now())
+        gateway = (GATEWAY[0],) if config.watch_gateway else ()
+        self.gateway = LivenessMonitor(gateway, max(GATEWAY_TIMEOUT_S, config.policy.node_timeout_s), TICK_S, self._now(),
+                                       optional=gateway)
         self.graph = GraphPresence(GRAPH_SAMPLE_S)
         self.core_stall = CoreStallMonitor(config.policy.core_stall, TICK_S, self._now())
         self.offboard_stream = LivenessMonitor((OFFBOARD_STREAM,), config.policy.offboard_loss_timeout_s, TICK_S,
@@ -161,6 +172,10 @@ class HealthNode:
                 self.node.create_subscription(msg_type, topic.name, self._listener(handle, owners.get(topic)), topic.qos)
         if self.config.link_topic:
             self.node.create_subscription(Header, self.config.link_topic, self._on_link, manifest.GCS_HEARTBEAT.qos)
+        if self.config.watch_gateway:
+            name, topic = GATEWAY
+            self.node.create_subscription(DiagnosticStatus, topic.name, lambda _: self.gateway.heard(name, self._now()),
+                                          topic.qos)
 
     def _listener(self, handle: Callable[[Any], None] | None, owner: str | None) -> Callable[[Any], None]:
         def on_message(msg: Any) -> None:
@@ -223,7 +238,7 @@ class HealthNode:
             self.arbiter.reset()
         if self.graph.due(t):
             self.graph.update(t, (name for name, _ in self.node.get_node_names_and_namespaces()))
-        silence = classify(self.liveness.silent(t), self.graph.names)
+        silence = classify(self.liveness.silent(t) + self.gateway.silent(t), self.graph.names)
         self.dead, self.stalled = silence.dead, silence.stalled
         self.core_stall_report = self.core_stall.check(t, self.graph.present(CORE))
         active = evaluate(self.snapshot(t), self.config.policy, t)

@@ -29,18 +29,24 @@ from dataclasses import dataclass
 
 
 class LivenessMonitor:
-    def __init__(self, names: Iterable[str], timeout_s: float, period_s: float, start: float) -> None:
+    """`optional` names (e.g. the offboard gateway, not in every graph) are judged only once they
+    have been heard: a graph without them is not a graph with a dead node."""
+
+    def __init__(self, names: Iterable[str], timeout_s: float, period_s: float, start: float,
+                 optional: Iterable[str] = ()) -> None:
         if timeout_s <= 0 or period_s <= 0:
             raise ValueError("timeout_s and period_s must be > 0")
         self.timeout_s = timeout_s
         self.period_s = period_s
         self.last_seen = {name: start for name in names}  # never heard yet: silent since start
+        self.unheard = set(optional) & set(self.last_seen)  # not judged until heard once
         self.last_check = start
         self.stalled_s = 0.0  # monitor stall time discounted so far (for diagnostics)
 
     def heard(self, name: str, t: float) -> None:
         if name in self.last_seen:
             self.last_seen[name] = max(self.last_seen[name], t)
+            self.unheard.discard(name)
 
     def silent(self, t: float) -> list[str]:
         """Names silent for more than timeout_s of monitor running time, sorted."""
@@ -50,7 +56,7 @@ class LivenessMonitor:
             for name, seen in self.last_seen.items():
                 self.last_seen[name] = min(t, seen + stall)
         self.last_check = t
-        return sorted(n for n, seen in self.last_seen.items() if t - seen > self.timeout_s)
+        return sorted(n for n, seen in self.last_seen.items() if t - seen > self.timeout_s and n not in self.unheard)
 
 
 @dataclass(frozen=True)

@@ -58,6 +58,17 @@ def test_never_heard_counts_from_start_and_bad_arguments():
         LivenessMonitor(["x"], timeout_s=0.0, period_s=PERIOD, start=0.0)
 
 
+def test_an_optional_node_is_judged_only_once_heard():
+    """The offboard gateway is not in every graph: never heard is not dead; heard, then silent, is."""
+    m = LivenessMonitor(["offboard"], timeout_s=2.5, period_s=PERIOD, start=0.0, optional=["offboard"])
+    _, verdict = run(m, 0.0, 30.0, set())
+    assert verdict == []
+    t, verdict = run(m, 30.0, 32.0, {"offboard"})
+    assert verdict == []
+    _, verdict = run(m, t, t + 2.6, set())
+    assert verdict == ["offboard"]
+
+
 def test_silent_and_gone_from_the_graph_is_dead_silent_but_present_is_stalled():
     assert classify(["sim", "mission", "core"], {"core", "sim", "health"}) == Silence(dead=("mission",), stalled=("core", "sim"))
     assert classify([], {"core"}) == Silence()
