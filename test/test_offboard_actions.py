@@ -4,7 +4,7 @@ One graph (sim, perception, navigation, core, mission, offboard), one flight: re
 ground, c4d_client arm + takeoff (success), takeoff while flying (rejected), goto beyond the
 ceiling (rejected), follow_path empty / wrong frame (rejected), goto (success, ground truth at the
 target), goto cancelled mid-way and follow_path cancelled (the vehicle holds: ground truth speed
-< 0.3 m/s within 2 s), follow_path (success), land cancelled (holds in the air), land (success:
+< 0.3 m/s within 2 s), follow_path (success), c4d_client offboard streaming, land cancelled (holds in the air), land (success:
 disarmed on the ground), take-off cancelled (holds low) and a last landing. The cancels go
 through a plain rclpy ActionClient of the test's own node, the rest through c4d_client.
 """
@@ -152,6 +152,14 @@ def test_actions_success_cancel_and_rejection(flight):
     # follow_path: success, at the last pose
     assert v.follow_path([(0, 4, 5), (4, 4, 6), (4, 0, 5)], speed=3.0) == 3
     assert world.held_within(3.0) is not None and math.dist(world.position(), (4, 0, 5)) < TRUTH_TOL, world.position()
+    # offboard streaming from the client: OFFBOARD entered after the stream is live, the vehicle follows it
+    with v.offboard() as ob:
+        assert v.status.flight_mode == VehicleStatus.MODE_OFFBOARD
+        assert v.status.setpoint_source == VehicleStatus.SOURCE_OFFBOARD and ob.sent >= 50  # >= 1 s at 50 Hz first
+        ob.set_position(0, 4, 5)
+        arrived = lambda: math.dist(world.position(), (0, 4, 5)) < TRUTH_TOL and world.speed() < HELD  # noqa: E731
+        assert spin_for(executor, 15, arrived, watch), world.position()
+    assert holding()
     # land cancelled: holds in the air; then land: disarmed on the ground
     result = cancel_mid_way(node, executor, watch, Land, "offboard/land", Land.Goal(), lambda: world.position()[2] < 4.0)
     assert result.status == GoalStatus.STATUS_CANCELED and holding() and v.status.armed
