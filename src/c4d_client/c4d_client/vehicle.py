@@ -122,7 +122,8 @@ class Vehicle:
 
     @property
     def state(self) -> VehicleState | None:
-        """The newest navigation/state (position, velocity, attitude, validity, home), taken now."""
+        """The newest navigation/state (position, velocity, attitude, validity, home), taken now.
+        (The same take loop as c4d_ros.drain.LatestSampler: the client may not import c4d_ros.)"""
         sub = self._state_sub
         while True:
             with sub.handle:
