@@ -155,7 +155,9 @@ def test_actions_success_cancel_and_rejection(flight):
     # offboard streaming from the client: OFFBOARD entered after the stream is live, the vehicle follows it
     with v.offboard() as ob:
         assert v.status.flight_mode == VehicleStatus.MODE_OFFBOARD
-        assert v.status.setpoint_source == VehicleStatus.SOURCE_OFFBOARD and ob.sent >= 50  # >= 1 s at 50 Hz first
+        assert ob.sent >= 50  # >= 1 s of stream at 50 Hz before the switch
+        # the status at the switch may still name the core as the source (seen once): the next ones name the stream
+        assert v.wait_for(lambda st: st.setpoint_source == VehicleStatus.SOURCE_OFFBOARD, 1.0), v.status
         ob.set_position(0, 4, 5)
         arrived = lambda: math.dist(world.position(), (0, 4, 5)) < TRUTH_TOL and world.speed() < HELD  # noqa: E731
         assert spin_for(executor, 15, arrived, watch), world.position()
