@@ -14,12 +14,11 @@ ROS-free; the core node calls `receive()` from its input phase, GncCore reads `l
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Generic, TypeVar
 
 from c4d_common.vehicle import Mode, Nav, SetpointSource
 
-if TYPE_CHECKING:
-    from .gnc import Setpoint
+Setpoint = TypeVar("Setpoint")  # gnc.Setpoint; generic here so that gnc can import this module without a cycle
 
 OFFBOARD_MAX_GAP_S = 0.5  # a longer gap between offboard setpoints breaks the stream (>= 2 Hz keeps it live)
 OFFBOARD_ENTRY_S = 1.0  # OFFBOARD is entered only after the stream has been live this long
@@ -58,7 +57,7 @@ class StreamLiveness:
 
 
 @dataclass
-class SetpointInputs:
+class SetpointInputs(Generic[Setpoint]):
     """The newest setpoint of each source, the ignored count and the offboard stream's liveness."""
 
     newest: dict[SetpointSource, Setpoint] = field(default_factory=dict)
