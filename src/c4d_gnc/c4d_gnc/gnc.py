@@ -204,6 +204,15 @@ class GncCore:
         pending, self.pending = self.pending, []
         for req in pending:
             self._apply(req)
+        if pending:  # the status published after a mode change names the new owner, not the last guidance step's
+            self.out.source = self._steering_source(self.inputs.setpoints.latest(owner(self.out.mode, self.out.nav)))
+
+    def _steering_source(self, setpoint: Setpoint | None) -> SetpointSource:
+        """The owner of the stream when its newest `setpoint` is fresh, else CORE (the core's own targets)."""
+        source = owner(self.out.mode, self.out.nav)
+        if source == SetpointSource.CORE or setpoint is None or self.inputs.now - setpoint.stamp > SETPOINT_TIMEOUT_S:
+            return SetpointSource.CORE
+        return source
 
     def _capture_hold(self) -> None:
         """Hold here with the current heading. (Braking first with velocity control and holding where the
@@ -274,9 +283,8 @@ class GncCore:
         now = self.inputs.now
         mode = out.mode
         source = owner(mode, out.nav)
-        sp = self.setpoint
-        external = sp if sp is not None and source != SetpointSource.CORE and now - sp.stamp <= SETPOINT_TIMEOUT_S else None
-        out.source = source if external is not None else SetpointSource.CORE
+        out.source = self._steering_source(self.setpoint)
+        external = self.setpoint if out.source != SetpointSource.CORE else None
         if mode in (Mode.RATE, Mode.ATTITUDE):
             level = Level.RATE if mode == Mode.RATE else Level.ATTITUDE
             if external is not None and external.level == level:

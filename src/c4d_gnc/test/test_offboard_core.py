@@ -63,7 +63,9 @@ def test_offboard_entry_is_refused_without_a_live_stream_then_accepted(make_loop
     assert set_offboard(loop)[0] == CommandResult.TEMPORARILY_REJECTED
     stream(loop, 1.1, hover_point(loop))
     assert set_offboard(loop)[0] == CommandResult.ACCEPTED
-    loop.run(0.05)  # guidance runs at 50 Hz
+    loop.run(0.002)  # the next tick's latch names the new owner (the status goes out in that tick)
+    assert loop.core.out.source == SetpointSource.OFFBOARD
+    loop.run(0.05)
     assert loop.core.out.mode == Mode.OFFBOARD and loop.core.out.source == SetpointSource.OFFBOARD
 
 

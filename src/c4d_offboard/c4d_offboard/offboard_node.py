@@ -259,7 +259,12 @@ def component(rclpy, host: Host) -> OffboardComponent:
         node.destroy_node()
         raise ComponentError(str(err)) from None
     side = rclpy.create_node(m.side_node_name("offboard"))
-    return OffboardComponent(node, side, OffboardNode(node, side, limits_of(values)))
+    try:
+        return OffboardComponent(node, side, OffboardNode(node, side, limits_of(values)))
+    except ParameterError as err:  # the action servers' parameters (action_*)
+        side.destroy_node()
+        node.destroy_node()
+        raise ComponentError(str(err)) from None
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -10,9 +10,9 @@ from c4d_common.geodesy import GeoOrigin
 from c4d_common.plan import Geofence
 from c4d_common.vehicle import Landed, Mode, Nav
 from c4d_offboard.action_logic import (
-    Brake,
     OFFBOARD_AFTER_S,
     OFFBOARD_GIVE_UP_S,
+    Brake,
     LandTracker,
     OffboardRun,
     PathPose,
