@@ -64,9 +64,17 @@ class Item:
 
 @dataclass(frozen=True)
 class Geofence:
-    polygon: tuple[tuple[float, float], ...] = ()  # (lat, lon) vertices
+    polygon: tuple[tuple[float, float], ...] = ()  # (lat, lon) vertices of the inclusion polygon
     max_altitude: float = 0.0  # <= 0: none
     max_distance: float = 0.0
+    exclusion_polygons: tuple[tuple[tuple[float, float], ...], ...] = ()  # each: (lat, lon) vertices
+    exclusion_circles: tuple[tuple[float, float, float], ...] = ()  # each: (lat, lon, radius [m])
+    min_altitude: float = 0.0  # [m] floor above home while flying; <= 0: none
+
+    @property
+    def empty(self) -> bool:
+        return not (self.polygon or self.max_altitude > 0 or self.max_distance > 0 or self.exclusion_polygons
+                    or self.exclusion_circles or self.min_altitude > 0)
 
 
 @dataclass(frozen=True)

@@ -82,6 +82,10 @@ GROUND_TRUTH = Topic("sim/ground_truth", "nav_msgs/msg/Odometry", S, "100 Hz", (
 ACTUATOR_LINK = Topic("sim/actuator_link", "diagnostic_msgs/msg/DiagnosticStatus", STATS, "1 Hz", ("sim",), (),
                       "the sim's diagnostics: gaps in control/actuators as the vehicle received them (worst, p99.9, "
                       "> 20 ms) and IMU samples published late / dropped after stalls (tests, bench)")
+SCAN = Topic("sensors/scan", "sensor_msgs/msg/LaserScan", S, "10-20 Hz (sim parameter)", ("sim",), ("perception",),
+             "horizontal 360° lidar rendered from the world file (frame base_link, FLU; levelled at the vehicle's height)")
+SIM_OBSTACLES = Topic("sim/obstacles", "c4d_interfaces/msg/Surroundings", S, "10 Hz", ("sim",), (),
+                      "the world's true obstacles and wind in `map` (tests, analysis); what perception estimates")
 CLOCK = Topic("clock", "rosgraph_msgs/msg/Clock", ST, "lockstep only: per step (500 Hz simulated)", ("sim",),
               ("core", "perception", "navigation", "mission", "payload", "health", "bridge"),
               "simulated time in lockstep mode (the core's tick; `use_sim_time` of the other nodes); absent in real time",
@@ -95,6 +99,12 @@ P_MAG = Topic("perception/mag", "sensor_msgs/msg/MagneticField", S, "50 Hz", ("p
 P_RANGE_DOWN = Topic("perception/range_down", "sensor_msgs/msg/Range", S, "50 Hz", ("perception",), ("navigation",))
 P_HEALTH = Topic("perception/health", "diagnostic_msgs/msg/DiagnosticArray", STATS, "5 Hz", ("perception",),
                  ("health", "mission", "bridge"), "sensor health (bridge: SYS_STATUS sensor bits)")
+SURROUNDINGS = Topic("perception/surroundings", "c4d_interfaces/msg/Surroundings", ST, "per scan (10-20 Hz)",
+                     ("perception",), ("core", "health", "bridge"),
+                     "tracked obstacles (map) and the wind estimate: the core's avoidance barrier, health's proximity "
+                     "events, the bridge's OBSTACLE_DISTANCE")
+MARKERS = Topic("perception/markers", "visualization_msgs/msg/MarkerArray", S, "per scan", ("perception",), (),
+                "obstacles as markers for RViz / Foxglove")
 # --- navigation ---------------------------------------------------------------------------
 NAV_STATE = Topic("navigation/state", "c4d_interfaces/msg/VehicleState", ST, "500 Hz (per IMU sample)", ("navigation",),
                   ("core", "mission", "payload", "health", "bridge", "offboard"), "full estimated state")
@@ -127,6 +137,10 @@ MISSION_PLAN = Topic("mission/plan", "c4d_interfaces/msg/MissionPlan", L, "on ch
 CAPTURES = Topic("payload/captures", "c4d_interfaces/msg/CaptureEvent", CMD, "per capture", ("payload",), ("bridge",))
 GIMBAL = Topic("payload/gimbal", "geometry_msgs/msg/Vector3Stamped", S, "50 Hz while a mission runs", ("payload",), (),
                "roll, pitch, yaw [rad], body frame")
+GEOFENCE = Topic("geofence/active", "c4d_interfaces/msg/Geofence", L, "on change", ("mission",),
+                 ("core", "health", "offboard", "bridge"),
+                 "the fence in force: the accepted plan's, or one set in flight (geofence/set, MAVLink fence upload); "
+                 "the core's barrier, health's breach check, the gateway's clamp, the bridge's FENCE_STATUS")
 # --- health -------------------------------------------------------------------------------
 DIAGNOSTICS = Topic("diagnostics", "diagnostic_msgs/msg/DiagnosticArray", STATS, "1 Hz", ("health",), ())
 HEALTH_SUMMARY = Topic("health/summary", "diagnostic_msgs/msg/DiagnosticStatus", L, "10 Hz", ("health",), ("bridge",),
@@ -157,9 +171,10 @@ RECORDER_STATUS = Topic("recorder/status", "diagnostic_msgs/msg/DiagnosticStatus
 TOPICS: tuple[Topic, ...] = (
     IMU, GPS, BARO, MAG, RANGE_DOWN, BATTERY, GROUND_TRUTH, ACTUATOR_LINK, CLOCK,
     P_IMU, P_GPS, P_BARO, P_MAG, P_RANGE_DOWN, P_HEALTH,
+    SCAN, SIM_OBSTACLES, SURROUNDINGS, MARKERS,
     NAV_STATE, NAV_ODOMETRY, NAV_POSE,
     SETPOINT, PILOT_SETPOINT, OFFBOARD_SETPOINT, ACTUATORS, STATUS, EXECUTOR_STATS, SCHEDULE,
-    MISSION_STATE, MISSION_PLAN, CAPTURES, GIMBAL,
+    MISSION_STATE, MISSION_PLAN, GEOFENCE, CAPTURES, GIMBAL,
     DIAGNOSTICS, HEALTH_SUMMARY,
     GCS_HEARTBEAT, LINK_STATS,
     OFFBOARD_TRAJECTORY, OFFBOARD_POSE, OFFBOARD_TWIST, OFFBOARD_STATUS,
@@ -175,13 +190,15 @@ MISSION_UPLOAD = Service("mission/upload", "c4d_interfaces/srv/UploadMission", "
                          "validate and accept a plan; also the c4d CLI")
 MISSION_DOWNLOAD = Service("mission/download", "c4d_interfaces/srv/DownloadMission", "mission", (),
                            "tools (the bridge answers MAVLink downloads from mission/plan)")
+SET_GEOFENCE = Service("geofence/set", "c4d_interfaces/srv/SetGeofence", "mission", ("bridge",),
+                       "replace the fence in force, in flight too (validated; outside it only with force); also tools")
 MISSION_CONTROL = Service("mission/control", "c4d_interfaces/srv/MissionControl", "mission", ("bridge",),
                           "start / pause / resume / clear / set current; also the c4d CLI")
 RECORDER_START = Service("recorder/start", "std_srvs/srv/Trigger", "recorder", (), "c4d CLI, tests")
 RECORDER_STOP = Service("recorder/stop", "std_srvs/srv/Trigger", "recorder", (), "c4d CLI, tests")
 
 SERVICES: tuple[Service, ...] = (
-    CORE_COMMAND, VEHICLE_COMMAND, MISSION_UPLOAD, MISSION_DOWNLOAD, MISSION_CONTROL, RECORDER_START, RECORDER_STOP,
+    CORE_COMMAND, VEHICLE_COMMAND, MISSION_UPLOAD, MISSION_DOWNLOAD, MISSION_CONTROL, SET_GEOFENCE, RECORDER_START, RECORDER_STOP,
 )
 
 # --- actions (rclpy action servers; clients are external nodes and c4d_client) ---------------
