@@ -19,9 +19,24 @@ from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, NavSat
 
 from c4d_ros import cdr, gc_policy, node_runtime
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
-from c4d_ros.manifest import BARO, GPS, IMU, MAG, P_BARO, P_GPS, P_HEALTH, P_IMU, P_MAG, P_RANGE_DOWN, RANGE_DOWN, Topic
+from c4d_ros.manifest import (
+    BARO,
+    GPS,
+    IMU,
+    MAG,
+    P_BARO,
+    P_GPS,
+    P_HEALTH,
+    P_IMU,
+    P_MAG,
+    P_RANGE_DOWN,
+    RANGE_DOWN,
+    Topic,
+    side_node_name,
+)
 from c4d_ros.params import ParameterError, Spec, declare_all
 
+from . import perception_surroundings as surroundings
 from .perception import Health, ImuCalibration, SensorMonitor, valid_fix, valid_imu, valid_mag, valid_pressure, valid_range
 
 NAME = "perception"
@@ -32,6 +47,7 @@ PARAMS = {
     "rt_priority": node_runtime.RT_PRIORITY,
     "events_executor": Spec(True, "spin with rclpy's EventsExecutor (less CPU) instead of the default executor [bool]",
                             read_only=True),
+    **surroundings.PARAMS,
 }
 HEALTH_PERIOD_S = 0.2  # 5 Hz: also the heartbeat health watches
 LEVELS = {Health.OK: DiagnosticStatus.OK, Health.LOW_RATE: DiagnosticStatus.WARN,
@@ -145,10 +161,19 @@ def component(rclpy, host: Host) -> SpunNode:
     try:
         params = declare_all(node, PARAMS)
         calibration = calibration_from(params)
+        airframe = surroundings.airframe_of(str(params["airframe"]))
     except ParameterError as exc:
         node.destroy_node()
         raise ComponentError(str(exc)) from None
-    return SpunNode(NAME, node, bool(params["events_executor"]), params["rt_priority"], PerceptionNode(node, calibration))
+    side = rclpy.create_node(side_node_name(NAME))  # navigation/state sampled, never spun (c4d_ros.drain.LatestSampler)
+    try:
+        around = surroundings.SurroundingsNode(node, side, params, airframe)
+    except ParameterError as exc:
+        side.destroy_node()
+        node.destroy_node()
+        raise ComponentError(str(exc)) from None
+    return SpunNode(NAME, node, bool(params["events_executor"]), params["rt_priority"],
+                    (PerceptionNode(node, calibration), around), (side,))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from scan_cast import ANGLE_MIN, BEAMS, INC, RANGE_MAX, RANGE_MIN, cast
 
 from c4d_common import quat
 from c4d_common.airframe import GRAVITY, default_airframe_path, load_airframe
@@ -25,37 +26,7 @@ from c4d_gnc.surroundings import (
     scan_points,
 )
 
-BEAMS = 720
-INC = 2.0 * math.pi / BEAMS
-ANGLE_MIN = -math.pi
-RANGE_MIN, RANGE_MAX = 0.2, 30.0
 CFG = ClusterConfig()
-
-
-def cast(x: float, y: float, yaw: float, circles=(), walls=(), noise: float = 0.0, seed: int = 0) -> np.ndarray:
-    """A 360° scan from (x, y, yaw): nearest hit of each beam on circles (cx, cy, r) and wall
-    segments ((x0, y0), (x1, y1)); +inf where nothing is within RANGE_MAX."""
-    a = yaw + ANGLE_MIN + INC * np.arange(BEAMS)
-    dx, dy = np.cos(a), np.sin(a)
-    best = np.full(BEAMS, np.inf)
-    for cx, cy, r in circles:
-        ox, oy = x - cx, y - cy
-        b = ox * dx + oy * dy
-        disc = b * b - (ox * ox + oy * oy - r * r)
-        t = np.where(disc >= 0, -b - np.sqrt(np.maximum(disc, 0)), np.inf)
-        best = np.minimum(best, np.where(t > 0, t, np.inf))
-    for (x0, y0), (x1, y1) in walls:
-        ex, ey = x1 - x0, y1 - y0
-        den = dx * ey - dy * ex
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = ((x0 - x) * ey - (y0 - y) * ex) / den
-            u = ((x0 - x) * dy - (y0 - y) * dx) / den
-        hit = (np.abs(den) > 1e-12) & (t > 0) & (u >= 0) & (u <= 1)
-        best = np.minimum(best, np.where(hit, t, np.inf))
-    if noise:
-        best = best + np.random.default_rng(seed).normal(0.0, noise, BEAMS)
-    best[best >= RANGE_MAX] = np.inf
-    return best.astype(np.float32)
 
 
 def detect_at(ranges, x=0.0, y=0.0, yaw=0.0, cfg=CFG):

@@ -107,7 +107,7 @@ MARKERS = Topic("perception/markers", "visualization_msgs/msg/MarkerArray", S, "
                 "obstacles as markers for RViz / Foxglove")
 # --- navigation ---------------------------------------------------------------------------
 NAV_STATE = Topic("navigation/state", "c4d_interfaces/msg/VehicleState", ST, "500 Hz (per IMU sample)", ("navigation",),
-                  ("core", "mission", "payload", "health", "bridge", "offboard"), "full estimated state")
+                  ("core", "perception", "mission", "payload", "health", "bridge", "offboard"), "full estimated state")
 NAV_ODOMETRY = Topic("navigation/odometry", "nav_msgs/msg/Odometry", ST, "50 Hz (parameter)", ("navigation",), ("health",),
                      "the estimate as standard odometry in `map` (tools, the c4d CLI); health: navigation's liveness")
 # --- GNC core -----------------------------------------------------------------------------
