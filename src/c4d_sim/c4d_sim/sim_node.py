@@ -13,7 +13,11 @@ Faults are ROS parameters, changeable at run time (parameter service):
   fault.mag_dropout, fault.range_dropout (bool); fault.gps_drift_m_s ([e, n, u]);
   fault.motor_health (one factor per motor, 1 = nominal, 0 = failed);
   fault.battery_drain_factor; fault.wind_gust_m_s (extra gust amplitude).
-Parameters: config (sim YAML). Bad configuration: one line, exit 2.
+Parameters: config (sim YAML); world (world YAML: obstacles, movers, wind — docs/flight_loop.md; empty = none);
+scan_rate_hz, scan_beams, scan_range_max_m, scan_noise_m (the lidar). With a world the sim renders a
+horizontal lidar scan on sensors/scan (lidar.py, vectorised ray casting in its own executive task)
+and publishes the true obstacles and wind on sim/obstacles (10 Hz); without one both topics exist
+but stay silent. Bad configuration or world: one line, exit 2.
 The behaviour is `simulation.Simulation` (ROS-free); this node maps it to topics and parameters.
 """
 
@@ -28,9 +32,10 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
-from sensor_msgs.msg import BatteryState, FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
+from sensor_msgs.msg import BatteryState, FluidPressure, Imu, LaserScan, MagneticField, NavSatFix, NavSatStatus, Range
 
-from c4d_interfaces.msg import ActuatorCommand
+from c4d_common import quat
+from c4d_interfaces.msg import ActuatorCommand, Obstacle, Surroundings
 from c4d_ros import cdr, manifest, node_runtime
 from c4d_ros.drain import Drainer
 from c4d_ros.params import ParameterError, Spec, declare, declare_all
@@ -40,13 +45,25 @@ from c4d_sched.tickschedule import build_schedule
 
 from . import lockstep_sim
 from .actuator_link import ActuatorLinkMonitor
+from .lidar import Lidar, LidarConfig
 from .sensors import RANGE_MIN, ImuSample
 from .sim_config import SimConfig, SimConfigError, default_sim_config, load_sim_config
 from .simulation import SENSOR_TASKS, Simulation, task_specs
+from .world import World, WorldError, load_world, truth
 
 FAULT = "fault."
 CONFIG = Spec("", "sim YAML file (airframe, start, rates, noise, wind); empty = the bundled config/sim.yaml [path]",
               read_only=True, empty=default_sim_config)
+WORLD_PARAMS = {
+    "world": Spec("", "world YAML file (static obstacles, movers, wind; docs/flight_loop.md); empty = no world [path]",
+                  read_only=True),
+    "scan_rate_hz": Spec(10.0, "lidar scan rate on sensors/scan (must divide the physics rate) [Hz]", 10.0, 20.0,
+                         read_only=True),
+    "scan_beams": Spec(360, "lidar beams per 360° scan [count]", 8, 4096, read_only=True),
+    "scan_range_max_m": Spec(30.0, "lidar maximum range: farther surfaces read +inf [m]", 1.0, 200.0, read_only=True),
+    "scan_noise_m": Spec(0.02, "lidar range noise, 1 sigma [m]", 0.0, 1.0, read_only=True),
+}
+OBSTACLES_RATE_HZ = 10.0  # sim/obstacles
 
 
 def fault_specs(motors: int) -> dict[str, Spec]:
@@ -75,14 +92,25 @@ def read_config(node) -> SimConfig:
     return load_sim_config(Path(path) if path else default_sim_config())
 
 
+def read_world(node) -> tuple[World | None, LidarConfig]:
+    """The world file (None without one) and the lidar parameters; WorldError when the file is unusable."""
+    p = declare_all(node, WORLD_PARAMS)
+    lidar = LidarConfig(beams=int(p["scan_beams"]), range_max=float(p["scan_range_max_m"]), noise=float(p["scan_noise_m"]),
+                        rate_hz=float(p["scan_rate_hz"]))
+    return (load_world(p["world"]) if p["world"] else None), lidar
+
+
 class SimNode:
     """The simulator's ROS face: fault parameters, sensors/* and sim/ground_truth publishers fed
     by executive tasks, control/actuators and the parameter services drained in the executive's
     input phase (no ROS executor: nothing wakes up per sample)."""
 
-    def __init__(self, node, config: SimConfig, rt_priority: int = 0) -> None:
+    def __init__(self, node, config: SimConfig, rt_priority: int = 0, world: World | None = None,
+                 lidar: LidarConfig | None = None) -> None:
         self.node, self.rt_priority = node, rt_priority
-        self.sim = Simulation(config, lambda: self.executive.t0_ns)
+        self.sim = Simulation(config, lambda: self.executive.t0_ns, world)
+        self.lidar_config = lidar or LidarConfig()
+        self.lidar = Lidar(self.lidar_config, world, config.seed) if world else None
         lockstep = declare_all(node, lockstep_sim.PARAMS)
         self.lockstep: lockstep_sim.SimLockstep | None = None
         self.plant, self.suite, self.sensors = self.sim.plant, self.sim.suite, config.sensors
@@ -99,6 +127,9 @@ class SimNode:
         self.pub_battery = node.create_publisher(BatteryState, manifest.BATTERY.name, manifest.BATTERY.qos)
         self.pub_truth = node.create_publisher(Odometry, manifest.GROUND_TRUTH.name, manifest.GROUND_TRUTH.qos)
         self.pub_link = node.create_publisher(DiagnosticStatus, manifest.ACTUATOR_LINK.name, manifest.ACTUATOR_LINK.qos)
+        # both exist without a world too (the graph matches the manifest); they publish only with one
+        self.pub_scan = node.create_publisher(LaserScan, manifest.SCAN.name, manifest.SCAN.qos)
+        self.pub_obstacles = node.create_publisher(Surroundings, manifest.SIM_OBSTACLES.name, manifest.SIM_OBSTACLES.qos)
         self.link = ActuatorLinkMonitor()
         self.next_link_report = time.monotonic() + 1.0
         self.drainer = Drainer(node)
@@ -113,7 +144,9 @@ class SimNode:
         self.drainer.adopt_node_services()  # fault injection via the parameter services, no executor needed
         tasks = dict(zip(("physics", *SENSOR_TASKS), (self.sim.physics, self.imu, self.gps, self.baro, self.mag,
                                                       self.range_down, self.battery, self.truth), strict=True))
-        schedule = build_schedule(1_000_000 // config.physics_rate_hz, "gcdplus", task_specs(config))
+        world_rates = {"scan": self.lidar_config.rate_hz, "obstacles": OBSTACLES_RATE_HZ} if world else {}
+        tasks.update({"scan": self.scan, "obstacles": self.obstacles} if world else {})
+        schedule = build_schedule(1_000_000 // config.physics_rate_hz, "gcdplus", task_specs(config, world_rates))
         clock: Clock = MonotonicClock(spin_ns=0)
         if lockstep["lockstep"]:  # simulated time: the executive's clock waits for the core (lockstep_sim)
             self.lockstep = lockstep_sim.SimLockstep(node, 1.0 / config.sensors.imu_rate_hz, lockstep["lockstep_timeout_s"],
@@ -129,6 +162,36 @@ class SimNode:
         self.executive = CyclicExecutive(schedule, tasks, clock, name="sim", input_phase=self.drain,
                                          output_phase=self.step_done if self.lockstep else None,
                                          report_period_s=3600, manage_gc=True, catch_up=set(SENSOR_TASKS))
+
+    def scan(self, k: int) -> None:
+        """sensors/scan: the lidar rendered at the vehicle's true position and heading."""
+        assert self.lidar is not None
+        s, cfg = self.plant.state, self.lidar_config
+        x, y, z = s.position
+        ranges = self.lidar.scan(x, y, z, quat.yaw_of(s.orientation), s.t)
+        m = LaserScan()
+        m.header.stamp, m.header.frame_id = self.stamp(s.t), "base_link"
+        m.angle_min, m.angle_increment = cfg.angle_min, cfg.increment
+        m.angle_max = cfg.angle_min + cfg.increment * (cfg.beams - 1)
+        m.time_increment, m.scan_time = 0.0, 1.0 / cfg.rate_hz  # rendered at one instant
+        m.range_min, m.range_max = cfg.range_min, cfg.range_max
+        m.ranges = ranges  # float32 numpy array: rclpy takes it without a per-element copy in Python
+        self.pub_scan.publish(m)
+
+    def obstacles(self, k: int) -> None:
+        """sim/obstacles: the world's true obstacles (bounding circles) and the wind in force."""
+        assert self.sim.world is not None
+        t = self.plant.state.t
+        m = Surroundings()
+        m.header.stamp, m.header.frame_id = self.stamp(t), "map"
+        for o in truth(self.sim.world, t):
+            ob = Obstacle(id=o.id, radius=o.radius, height=o.height, confidence=1.0, age=float(t))
+            ob.position.x, ob.position.y, ob.position.z = o.x, o.y, 0.5 * o.height
+            ob.velocity.x, ob.velocity.y = o.vx, o.vy
+            m.obstacles.append(ob)
+        m.wind.x, m.wind.y, m.wind.z = self.plant.wind
+        m.wind_valid, m.wind_std = True, 0.0
+        self.pub_obstacles.publish(m)
 
     def on_parameters(self, params: list[Any]) -> SetParametersResult:
         for p in params:
@@ -272,6 +335,10 @@ class SimNode:
         cfg = self.sim.config
         log.info(f"sim: {cfg.airframe.name} at {cfg.origin}, physics {cfg.physics_rate_hz} Hz, "
                  f"IMU {self.sensors.imu_rate_hz:.0f} Hz, GNSS {self.sensors.gps_rate_hz:.0f} Hz")
+        if self.sim.world:
+            w, lc = self.sim.world, self.lidar_config
+            log.info(f"sim: world '{w.name}': {w.obstacle_count} obstacle(s) ({len(w.movers)} moving), wind "
+                     f"{self.sim.wind_field.mean} m/s; lidar {lc.beams} beams at {lc.rate_hz:g} Hz, max {lc.range_max:g} m")
         node_runtime.apply_rt_priority(self.rt_priority, log)
         if self.lockstep:
             log.info(f"sim: LOCKSTEP — simulated time (/clock) advances only when the core answers each "
@@ -298,8 +365,10 @@ def main(argv: list[str] | None = None) -> int:
     rclpy = node_runtime.init(argv)
     node = rclpy.create_node("sim")
     try:
-        sim = SimNode(node, read_config(node), read_rt_priority(node))
-    except (SimConfigError, ParameterError) as exc:
+        config = read_config(node)
+        world, lidar = read_world(node)
+        sim = SimNode(node, config, read_rt_priority(node), world, lidar)
+    except (SimConfigError, WorldError, ParameterError) as exc:
         return node_runtime.fail("sim", str(exc), node)
     return sim.run()
 

@@ -22,10 +22,12 @@ from c4d_sched.tickschedule import TaskSpec
 from .plant import MultirotorPlant
 from .sensors import Faults, GpsSample, ImuSample, SensorSuite
 from .sim_config import SimConfig, SimConfigError
+from .world import WindField, World
 
 ESC_TIMEOUT_S = 0.2  # without a motor command for this long the ESCs stop the motors
 IMU_MAX_BACKLOG_S = 0.1  # IMU samples older than this when the sim catches up are dropped (and counted)
 SENSOR_TASKS = ("imu", "gps", "baro", "mag", "range", "battery", "truth")  # executive tasks after "physics"
+WORLD_TASK_BUDGET_US = 800  # scan / sim/obstacles task budget (bench/lidar_raycast.py: a 360-beam scan of 50 obstacles)
 BOOL_FAULTS = frozenset({"imu_dropout", "imu_freeze", "gps_loss", "baro_dropout", "baro_freeze", "mag_dropout",
                          "range_dropout"})
 
@@ -76,8 +78,10 @@ class Simulation:
     (monotonic clock) leaves the motors unpowered.
     """
 
-    def __init__(self, config: SimConfig, tick0_ns: Callable[[], int | None]) -> None:
+    def __init__(self, config: SimConfig, tick0_ns: Callable[[], int | None], world: World | None = None) -> None:
         self.config = config
+        self.world = world  # obstacles (lidar, sim/obstacles) and, when it has one, the wind field
+        self.wind_field = world.wind if world and world.wind else WindField(config.wind_mean, config.gust, config.gust_period)
         self.motors = len(config.airframe.motors)
         self.plant = MultirotorPlant(config.airframe, (0.0, 0.0, 0.0), config.yaw)
         self.faults = Faults()
@@ -105,12 +109,11 @@ class Simulation:
     def physics(self, k: int) -> None:
         """Executive task: advance the plant to tick k (ticks skipped after a stall are simulated too),
         sampling the IMU at each IMU period of the steps (stamps on the IMU's own 1/rate grid)."""
-        plant, cfg = self.plant, self.config
+        plant = self.plant
         if self._last_tick < 0 and self.anchor_epoch:  # anchor simulated t = 0 to the wall-clock time of tick 0's deadline
             self.wall_epoch = time.time() - (time.monotonic_ns() - (self._tick0_ns() or 0)) / 1e9 - plant.state.t
         fresh = self.now() - self.command_t < ESC_TIMEOUT_S
-        gust = (cfg.gust + self.extra_gust) * 0.5 * (1 - math.cos(2 * math.pi * plant.state.t / cfg.gust_period))
-        plant.wind = (cfg.wind_mean[0] + gust, cfg.wind_mean[1], cfg.wind_mean[2])
+        plant.wind = self.wind_field.at(plant.state.t, self.extra_gust)
         imu_dt = self._dt * self._imu_divider
         for _ in range(k - self._last_tick):  # every skipped tick is simulated: sim time stays wall time
             plant.step(self._dt, self.outputs, self.armed and fresh)
@@ -165,13 +168,15 @@ class Simulation:
         return None
 
 
-def task_specs(config: SimConfig) -> list[TaskSpec]:
-    """The executive's tasks: physics first in the input class, then the sensors at their rates.
+def task_specs(config: SimConfig, world_rates: dict[str, float] | None = None) -> list[TaskSpec]:
+    """The executive's tasks: physics first in the input class, then the sensors at their rates,
+    then `world_rates` (with a world: {"scan": lidar rate, "obstacles": truth rate}).
 
     Raises SimConfigError when a rate does not divide the physics rate."""
     rate, sc = config.physics_rate_hz, config.sensors
     rates = {"imu": sc.imu_rate_hz, "gps": sc.gps_rate_hz, "baro": sc.baro_rate_hz, "mag": sc.mag_rate_hz,
-             "range": sc.range_rate_hz, "battery": sc.battery_rate_hz, "truth": config.truth_rate_hz}
+             "range": sc.range_rate_hz, "battery": sc.battery_rate_hz, "truth": config.truth_rate_hz,
+             **(world_rates or {})}
 
     def divider(hz: float) -> int:
         d = round(rate / hz)
@@ -179,5 +184,7 @@ def task_specs(config: SimConfig) -> list[TaskSpec]:
             raise SimConfigError(f"sim config: a {hz} Hz rate does not divide the physics rate {rate} Hz")
         return d
 
-    return [TaskSpec("physics", "input", 1, 50, 0)] + [TaskSpec(name, "telemetry", divider(rates[name]), 30, None)
-                                                       for name in SENSOR_TASKS]
+    budgets = {"scan": WORLD_TASK_BUDGET_US, "obstacles": WORLD_TASK_BUDGET_US}
+    return [TaskSpec("physics", "input", 1, 50, 0)] + [TaskSpec(name, "telemetry", divider(rates[name]),
+                                                                budgets.get(name, 30), None)
+                                                       for name in (*SENSOR_TASKS, *(world_rates or {}))]
