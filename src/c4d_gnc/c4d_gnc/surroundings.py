@@ -13,8 +13,8 @@ Obstacles, per scan:
    arc, whose centroid lies ~r/2 in front of the true centre and whose spread underestimates the
    radius; the fitted circle has both right. A cluster that is no post (a wall, a box: fitted
    radius above `max_radius_m`, residual above `fit_tolerance_m`, or the centre on the sensor's
-   side) is cut by a fixed `cell_m` grid in `map` into pieces, each its bounding circle: a wall
-   becomes a chain of circles that stay put while the vehicle moves along it.
+   side) is cut by a fixed `cell_m` grid in `map` along its longer axis (x or y) into pieces, each
+   its bounding circle: a wall becomes a chain of circles that stay put while the vehicle moves.
 4. `Tracker`: detections are associated to tracks by global nearest neighbour (greedy on the
    distance to each track's predicted position, within `gate_m`); each track runs a constant-
    velocity Kalman filter (white acceleration noise), so a mover's velocity comes out of the
@@ -151,10 +151,10 @@ def detect(cluster: np.ndarray, sensor: tuple[float, float], cfg: ClusterConfig)
         beyond = math.hypot(cx - sensor[0], cy - sensor[1]) > near  # convex towards the sensor
         if r <= cfg.max_radius_m and rms <= cfg.fit_tolerance_m and beyond:
             return [Detection(cx, cy, max(r, MIN_RADIUS_M), len(cluster))]
-    cells = np.floor(cluster / cfg.cell_m).astype(np.int64)
-    keys, inverse = np.unique(cells, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    return [bounding(cluster[inverse == k]) for k in range(len(keys))]
+    spread = np.ptp(cluster, axis=0)
+    axis = 0 if spread[0] >= spread[1] else 1  # cut across the long axis only: a wall on a grid line stays one row
+    cells = np.floor(cluster[:, axis] / cfg.cell_m).astype(np.int64)
+    return [bounding(cluster[cells == k]) for k in np.unique(cells)]
 
 
 def detections(ranges: np.ndarray, angle_min: float, angle_increment: float, range_min: float, range_max: float,
