@@ -51,26 +51,48 @@ class Lidar:
         cyl = world.cylinders
         self._cyl = np.array([[c.x, c.y, c.radius, c.height] for c in cyl], dtype=float).reshape(-1, 4)
         box = world.boxes
-        self._box = np.array([[b.x, b.y, 0.5 * b.size_x, 0.5 * b.size_y, math.cos(b.yaw), math.sin(b.yaw), b.height]
-                              for b in box], dtype=float).reshape(-1, 7)
+        self._box = np.array([[b.x, b.y, 0.5 * b.size_x, 0.5 * b.size_y, math.cos(b.yaw), math.sin(b.yaw), b.height,
+                               b.bounding_radius] for b in box], dtype=float).reshape(-1, 8)
 
     def true_ranges(self, x: float, y: float, z: float, yaw: float, t: float) -> np.ndarray:
         """Noise-free distance [m] along each beam to the nearest surface; inf without a hit
-        (no range limits applied), 0 when the sensor is inside an obstacle."""
-        theta = self.angles + yaw
-        cos, sin = np.cos(theta), np.sin(theta)
-        best = np.full(self.config.beams, np.inf)
+        (no range limits applied), 0 when the sensor is inside an obstacle.
+
+        Only (beam, obstacle) pairs inside each obstacle's angular sector (its bounding circle seen
+        from the sensor) are intersected, and obstacles beyond range_max are skipped, so the cost
+        grows with the beams the obstacles cover rather than beams × obstacles."""
+        cfg = self.config
+        best = np.full(cfg.beams, np.inf)
         cyl = self._cyl
         if self.world.movers:
             moving = np.array([[c.x, c.y, c.radius, c.height] for c in (m.cylinder(t) for m in self.world.movers)])
             cyl = np.vstack((cyl, moving))
-        cyl = cyl[(z >= 0.0) & (z <= cyl[:, 3])]
-        if len(cyl):
-            best = np.minimum(best, _circles(cos, sin, x, y, cyl))
-        box = self._box[(z >= 0.0) & (z <= self._box[:, 6])]
-        if len(box):
-            best = np.minimum(best, _boxes(cos, sin, x, y, box))
+        for rows, radius, hit in ((cyl, cyl[:, 2], _circles), (self._box, self._box[:, 7], _boxes)):
+            heights = rows[:, 3] if hit is _circles else rows[:, 6]
+            dist = np.hypot(rows[:, 0] - x, rows[:, 1] - y)
+            keep = (z >= 0.0) & (z <= heights) & (dist - radius <= cfg.range_max)
+            if not keep.any():
+                continue
+            rows, radius, dist = rows[keep], radius[keep], dist[keep]
+            beam, index = self._sectors(np.arctan2(rows[:, 1] - y, rows[:, 0] - x) - yaw, radius, dist)
+            theta = self.angles[beam] + yaw
+            np.minimum.at(best, beam, hit(np.cos(theta), np.sin(theta), x, y, rows[index]))
         return best
+
+    def _sectors(self, bearing: np.ndarray, radius: np.ndarray, dist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(beam index, obstacle index) of every beam that may meet each obstacle's bounding circle:
+        the beams within asin(radius / distance) of its bearing (all of them when the sensor is inside)."""
+        cfg = self.config
+        inside = dist <= radius
+        half = np.where(inside, np.pi, np.arcsin(np.minimum(radius / np.maximum(dist, 1e-12), 1.0)) + 1e-9)
+        lo = np.ceil((bearing - half - cfg.angle_min) / cfg.increment).astype(np.int64)
+        hi = np.floor((bearing + half - cfg.angle_min) / cfg.increment).astype(np.int64)
+        counts = np.clip(hi - lo + 1, 0, cfg.beams)
+        counts[inside] = cfg.beams
+        index = np.repeat(np.arange(len(counts)), counts)
+        start = np.repeat(np.cumsum(counts) - counts, counts)
+        beam = (np.repeat(lo, counts) + np.arange(int(counts.sum())) - start) % cfg.beams
+        return beam, index
 
     def scan(self, x: float, y: float, z: float, yaw: float, t: float) -> np.ndarray:
         """float32 ranges [m] per beam with noise and the REP-117 conventions (+inf: nothing within
@@ -86,30 +108,28 @@ class Lidar:
 
 
 def _circles(cos: np.ndarray, sin: np.ndarray, x: float, y: float, cyl: np.ndarray) -> np.ndarray:
-    """Nearest hit [m] per beam against vertical cylinders (rows x, y, r, h): |o + t·d - c| = r."""
+    """Distance [m] along each beam (cos, sin) to its cylinder (rows x, y, r, h; one row per beam): the
+    smallest t >= 0 with |o + t·d - c| = r; 0 inside, inf on a miss."""
     dx, dy, r = cyl[:, 0] - x, cyl[:, 1] - y, cyl[:, 2]
-    b = cos[:, None] * dx + sin[:, None] * dy  # (beams, n): projection of the centre on the beam
-    c = dx * dx + dy * dy - r * r  # (n,): < 0 when the sensor is inside
+    b = cos * dx + sin * dy  # projection of the centre on the beam
+    c = dx * dx + dy * dy - r * r  # < 0 when the sensor is inside
     disc = b * b - c
     with np.errstate(invalid="ignore"):
         t = b - np.sqrt(disc)
     t = np.where((disc >= 0.0) & (t >= 0.0), t, np.inf)
-    t = np.where(c < 0.0, 0.0, t)
-    return np.asarray(t.min(axis=1))
+    return np.where(c < 0.0, 0.0, t)
 
 
 def _boxes(cos: np.ndarray, sin: np.ndarray, x: float, y: float, box: np.ndarray) -> np.ndarray:
-    """Nearest hit [m] per beam against yawed boxes (rows x, y, half x, half y, cos yaw, sin yaw, h): slab method
-    in each box's frame."""
+    """Distance [m] along each beam to its yawed box (rows x, y, half x, half y, cos yaw, sin yaw, ...; one row
+    per beam): slab method in the box's frame; 0 inside, inf on a miss."""
     cx, cy, hx, hy, cb, sb = (box[:, i] for i in range(6))
-    ox, oy = cb * (x - cx) + sb * (y - cy), -sb * (x - cx) + cb * (y - cy)  # sensor in box frames (n,)
-    dx = cos[:, None] * cb + sin[:, None] * sb  # beam directions in box frames (beams, n)
-    dy = -cos[:, None] * sb + sin[:, None] * cb
+    ox, oy = cb * (x - cx) + sb * (y - cy), -sb * (x - cx) + cb * (y - cy)  # the sensor in the box frame
+    dx, dy = cos * cb + sin * sb, -cos * sb + sin * cb  # the beam in the box frame
     with np.errstate(divide="ignore", invalid="ignore"):
         tx1, tx2 = (-hx - ox) / dx, (hx - ox) / dx
         ty1, ty2 = (-hy - oy) / dy, (hy - oy) / dy
     near = np.fmax(np.fmin(tx1, tx2), np.fmin(ty1, ty2))
     far = np.fmin(np.fmax(tx1, tx2), np.fmax(ty1, ty2))
     entry = np.maximum(near, 0.0)
-    t = np.where(far >= entry, entry, np.inf)
-    return np.asarray(t.min(axis=1))
+    return np.where(far >= entry, entry, np.inf)

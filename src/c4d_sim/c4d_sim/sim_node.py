@@ -23,6 +23,7 @@ The behaviour is `simulation.Simulation` (ROS-free); this node maps it to topics
 
 from __future__ import annotations
 
+import array
 import signal
 import sys
 import time
@@ -130,6 +131,7 @@ class SimNode:
         # both exist without a world too (the graph matches the manifest); they publish only with one
         self.pub_scan = node.create_publisher(LaserScan, manifest.SCAN.name, manifest.SCAN.qos)
         self.pub_obstacles = node.create_publisher(Surroundings, manifest.SIM_OBSTACLES.name, manifest.SIM_OBSTACLES.qos)
+        self.obstacles_msg: Surroundings | None = None  # built at the first publication
         self.link = ActuatorLinkMonitor()
         self.next_link_report = time.monotonic() + 1.0
         self.drainer = Drainer(node)
@@ -175,22 +177,30 @@ class SimNode:
         m.angle_max = cfg.angle_min + cfg.increment * (cfg.beams - 1)
         m.time_increment, m.scan_time = 0.0, 1.0 / cfg.rate_hz  # rendered at one instant
         m.range_min, m.range_max = cfg.range_min, cfg.range_max
-        m.ranges = ranges  # float32 numpy array: rclpy takes it without a per-element copy in Python
+        m.ranges = array.array("f", ranges.tobytes())  # array('f'): no per-element check or copy in Python
         self.pub_scan.publish(m)
 
     def obstacles(self, k: int) -> None:
-        """sim/obstacles: the world's true obstacles (bounding circles) and the wind in force."""
-        assert self.sim.world is not None
+        """sim/obstacles: the world's true obstacles (bounding circles) and the wind in force. The message
+        is built once; each publication updates the stamp, ages, movers and wind (50 fresh Obstacle
+        messages cost ~0.3 ms of the sim's tick)."""
+        world = self.sim.world
+        assert world is not None
         t = self.plant.state.t
-        m = Surroundings()
-        m.header.stamp, m.header.frame_id = self.stamp(t), "map"
-        for o in truth(self.sim.world, t):
-            ob = Obstacle(id=o.id, radius=o.radius, height=o.height, confidence=1.0, age=float(t))
-            ob.position.x, ob.position.y, ob.position.z = o.x, o.y, 0.5 * o.height
-            ob.velocity.x, ob.velocity.y = o.vx, o.vy
-            m.obstacles.append(ob)
+        m = self.obstacles_msg
+        if m is None:
+            m = self.obstacles_msg = Surroundings()
+            m.header.frame_id, m.wind_valid, m.wind_std = "map", True, 0.0
+            for o in truth(world, t):
+                ob = Obstacle(id=o.id, radius=o.radius, height=o.height, confidence=1.0)
+                ob.position.x, ob.position.y, ob.position.z = o.x, o.y, 0.5 * o.height
+                m.obstacles.append(ob)
+        m.header.stamp = self.stamp(t)
+        for ob, mover in zip(m.obstacles[len(m.obstacles) - len(world.movers):], world.movers, strict=True):
+            (ob.position.x, ob.position.y), (ob.velocity.x, ob.velocity.y) = mover.state(t)
+        for ob in m.obstacles:
+            ob.age = t  # they exist since the world was loaded (simulated t = 0)
         m.wind.x, m.wind.y, m.wind.z = self.plant.wind
-        m.wind_valid, m.wind_std = True, 0.0
         self.pub_obstacles.publish(m)
 
     def on_parameters(self, params: list[Any]) -> SetParametersResult:

@@ -27,7 +27,7 @@ from .world import WindField, World
 ESC_TIMEOUT_S = 0.2  # without a motor command for this long the ESCs stop the motors
 IMU_MAX_BACKLOG_S = 0.1  # IMU samples older than this when the sim catches up are dropped (and counted)
 SENSOR_TASKS = ("imu", "gps", "baro", "mag", "range", "battery", "truth")  # executive tasks after "physics"
-WORLD_TASK_BUDGET_US = 800  # scan / sim/obstacles task budget (bench/lidar_raycast.py: a 360-beam scan of 50 obstacles)
+WORLD_TASK_BUDGET_US = 400  # scan / sim/obstacles task budget (bench/lidar_raycast.py: p99 of a 720-beam scan of 50 obstacles)
 BOOL_FAULTS = frozenset({"imu_dropout", "imu_freeze", "gps_loss", "baro_dropout", "baro_freeze", "mag_dropout",
                          "range_dropout"})
 

@@ -48,6 +48,9 @@ def test_box_yawed_box_and_wall_exact_ranges():
     r = ranges(wall)
     assert r[2] == pytest.approx(2.9, abs=1e-5)  # south
     assert r[1] == pytest.approx(2.9 * math.sqrt(2.0), abs=1e-5)  # south-west, 45° to the wall
+    # a 200 m wall whose centre lies far beyond range_max is still seen where it passes near
+    far = load_world_text("walls:\n  - {from: [-5, 3], to: [195, 3], thickness: 0.2, height: 5}\n")
+    assert ranges(far, range_max=10.0)[6] == pytest.approx(2.9, abs=1e-5)
 
 
 def test_nearest_surface_wins_and_height_and_limits():
