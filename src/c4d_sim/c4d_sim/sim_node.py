@@ -93,9 +93,14 @@ def read_config(node) -> SimConfig:
     return load_sim_config(Path(path) if path else default_sim_config())
 
 
-def read_world(node) -> tuple[World | None, LidarConfig]:
-    """The world file (None without one) and the lidar parameters; WorldError when the file is unusable."""
+def read_world(node, physics_rate_hz: int = 1000) -> tuple[World | None, LidarConfig]:
+    """The world file (None without one) and the lidar parameters; WorldError when the file is unusable,
+    ParameterError when a parameter is (a scan rate must divide the physics rate: the scan is an executive task)."""
     p = declare_all(node, WORLD_PARAMS)
+    divider = physics_rate_hz / p["scan_rate_hz"]
+    if abs(divider - round(divider)) > 1e-9:
+        raise ParameterError(f"parameter 'scan_rate_hz': {p['scan_rate_hz']:g} Hz does not divide the physics rate "
+                             f"{physics_rate_hz} Hz (10, 12.5, 20 do)")
     lidar = LidarConfig(beams=int(p["scan_beams"]), range_max=float(p["scan_range_max_m"]), noise=float(p["scan_noise_m"]),
                         rate_hz=float(p["scan_rate_hz"]))
     return (load_world(p["world"]) if p["world"] else None), lidar
@@ -376,7 +381,7 @@ def main(argv: list[str] | None = None) -> int:
     node = rclpy.create_node("sim")
     try:
         config = read_config(node)
-        world, lidar = read_world(node)
+        world, lidar = read_world(node, config.physics_rate_hz)
         sim = SimNode(node, config, read_rt_priority(node), world, lidar)
     except (SimConfigError, WorldError, ParameterError) as exc:
         return node_runtime.fail("sim", str(exc), node)
