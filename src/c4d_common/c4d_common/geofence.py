@@ -1,11 +1,16 @@
 """Geofence geometry: the one check used by pre-flight plan validation and by health in flight.
 
 A `Geofence` (c4d_common.plan) holds an inclusion polygon in geodetic coordinates, a ceiling
-above home and a maximum distance from home (each optional). `LocalFence` converts it once to
-the local ENU frame of a home position and answers the two questions every user asks: is this
-point inside (`breach`), and does the straight leg between two points stay inside (`leg_inside`)?
-`clamp` moves a point that is outside to the nearest point inside (the offboard gateway's
-treatment of external position targets beyond the fence).
+above home, a maximum distance from home, exclusion polygons, exclusion circles (vertical
+cylinders) and a floor above home (each optional). `LocalFence` converts it once to the local
+ENU frame of a home position and answers the two questions every user asks: is this point
+inside (`breach`), and does the straight leg between two points stay inside (`leg_inside`:
+inside the inclusion polygon and through no exclusion zone)? `clamp` moves a point that is
+outside to the nearest point inside (the offboard gateway's treatment of external position
+targets beyond the fence).
+
+The floor applies while flying only: take-off and landing pass through it, so `breach` judges
+it when asked (`with_floor`) and leg checks leave it to the altitude rules of plan validation.
 """
 
 from __future__ import annotations
@@ -25,6 +30,9 @@ class BreachKind(Enum):
     POLYGON = "polygon"
     CEILING = "ceiling"
     DISTANCE = "distance"
+    EXCLUSION_POLYGON = "exclusion_polygon"
+    EXCLUSION_CIRCLE = "exclusion_circle"
+    FLOOR = "floor"
 
 
 @dataclass(frozen=True)
@@ -88,6 +96,25 @@ def leg_inside(a: Point2, b: Point2, polygon: list[Point2]) -> bool:
     return not any(_segments_intersect(a, b, e1, e2) for e1, e2 in edges)
 
 
+def segment_circle_distance(a: Point2, b: Point2, centre: Point2) -> float:
+    """The least distance from `centre` to the segment a–b."""
+    return math.dist(nearest_on_segment(centre, a, b), centre)
+
+
+def leg_enters_polygon(a: Point2, b: Point2, polygon: list[Point2]) -> bool:
+    """The segment a–b touches the inside of `polygon` (an exclusion zone): an end inside, or a
+    crossing of one of its edges (a leg through the zone with both ends outside)."""
+    if point_inside(a, polygon) or point_inside(b, polygon):
+        return True
+    edges = zip(polygon, polygon[1:] + polygon[:1], strict=True)
+    return any(_segments_intersect(a, b, e1, e2) for e1, e2 in edges)
+
+
+def _local(home: GeoOrigin, lat: float, lon: float) -> Point2:
+    east, north, _ = home.to_enu(lat, lon, home.altitude)
+    return float(east), float(north)
+
+
 @dataclass(frozen=True)
 class LocalFence:
     """A Geofence in the local ENU frame of `home` (metres east, north, up from home)."""
@@ -95,22 +122,43 @@ class LocalFence:
     polygon: tuple[Point2, ...]
     max_altitude: float  # <= 0: none
     max_distance: float  # <= 0: none
+    exclusion_polygons: tuple[tuple[Point2, ...], ...] = ()
+    exclusion_circles: tuple[tuple[float, float, float], ...] = ()  # (east, north, radius [m])
+    min_altitude: float = 0.0  # floor [m above home] while flying; <= 0: none
 
     @classmethod
     def from_geofence(cls, fence: Geofence, home: GeoOrigin) -> LocalFence:
-        polygon = tuple(home.to_enu(lat, lon, home.altitude)[:2] for lat, lon in fence.polygon)
-        return cls(tuple((float(e), float(n)) for e, n in polygon), fence.max_altitude, fence.max_distance)
+        def local(points: tuple[tuple[float, float], ...]) -> tuple[Point2, ...]:
+            return tuple(_local(home, lat, lon) for lat, lon in points)
+
+        circles = tuple((*_local(home, lat, lon), float(radius)) for lat, lon, radius in fence.exclusion_circles)
+        return cls(local(fence.polygon), fence.max_altitude, fence.max_distance,
+                   tuple(local(p) for p in fence.exclusion_polygons), circles, fence.min_altitude)
 
     def leg_inside(self, a: Point2, b: Point2) -> bool:
         """The horizontal leg a → b stays inside the polygon (True when there is none)."""
         return not self.polygon or leg_inside(a, b, list(self.polygon))
 
+    def leg_exclusion(self, a: Point2, b: Point2) -> str:
+        """Which exclusion zone the horizontal leg a → b enters ("" when none): "exclusion polygon k"
+        or "exclusion circle k" (0-based, in the fence's order)."""
+        for k, polygon in enumerate(self.exclusion_polygons):
+            if leg_enters_polygon(a, b, list(polygon)):
+                return f"exclusion polygon {k}"
+        for k, (x, y, radius) in enumerate(self.exclusion_circles):
+            if segment_circle_distance(a, b, (x, y)) < radius:
+                return f"exclusion circle {k}"
+        return ""
+
     def clamp(self, position: Point3, margin: float = 0.1) -> Point3:
-        """The point inside the fence nearest to `position` (`position` itself when inside): onto
-        the polygon, then within max_distance of home, then below the ceiling, each `margin` [m]
-        inside its limit so that the result passes `breach`. Why: an external position target
+        """The point inside the fence nearest to `position` (`position` itself when inside): out of
+        the exclusion zones, onto the polygon, then within max_distance of home, then below the
+        ceiling, each `margin` [m] inside its limit so that the result passes `breach` (exclusion
+        zones overlapping the inclusion boundary may leave it inside one; the floor is not
+        clamped: it does not apply to landings). Why: an external position target
         beyond the fence is flown to the fence instead of being refused (the stream keeps going)."""
         x, y, z = position
+        x, y = self._out_of_exclusions((x, y), margin)
         if self.polygon and not point_inside((x, y), list(self.polygon)):
             x, y = pull_inside((x, y), list(self.polygon), margin)
         distance = math.hypot(x, y)
@@ -121,8 +169,25 @@ class LocalFence:
             z = self.max_altitude - margin
         return (x, y, z)
 
-    def breach(self, position: Point3) -> Breach | None:
-        """The first rule `position` violates (polygon, then ceiling, then distance), or None."""
+    def _out_of_exclusions(self, p: Point2, margin: float) -> Point2:
+        """`p` moved `margin` outside every exclusion zone it is in (to the nearest boundary point)."""
+        for polygon in self.exclusion_polygons:
+            if point_inside(p, list(polygon)):
+                edges = zip(polygon, polygon[1:] + polygon[:1], strict=True)
+                q = min((nearest_on_segment(p, a, b) for a, b in edges), key=lambda c: math.dist(c, p))
+                dx, dy = q[0] - p[0], q[1] - p[1]
+                norm = math.hypot(dx, dy)
+                p = (q[0] + margin * dx / norm, q[1] + margin * dy / norm) if norm > 0 else q
+        for cx, cy, radius in self.exclusion_circles:
+            rho = math.dist(p, (cx, cy))
+            if rho < radius:
+                ex, ey = ((p[0] - cx) / rho, (p[1] - cy) / rho) if rho > 1e-9 else (1.0, 0.0)
+                p = (cx + (radius + margin) * ex, cy + (radius + margin) * ey)
+        return p
+
+    def breach(self, position: Point3, with_floor: bool = False) -> Breach | None:
+        """The first rule `position` violates (polygon, ceiling, distance, exclusion polygons,
+        exclusion circles, then — only `with_floor`, i.e. while flying — the floor), or None."""
         here = (position[0], position[1])
         if self.polygon and not point_inside(here, list(self.polygon)):
             return Breach(BreachKind.POLYGON, "outside the inclusion polygon")
@@ -131,4 +196,12 @@ class LocalFence:
         distance = math.hypot(*here)
         if self.max_distance > 0 and distance > self.max_distance:
             return Breach(BreachKind.DISTANCE, f"{distance:.0f} m from home (limit {self.max_distance:g} m)")
+        for k, polygon in enumerate(self.exclusion_polygons):
+            if point_inside(here, list(polygon)):
+                return Breach(BreachKind.EXCLUSION_POLYGON, f"inside exclusion polygon {k}")
+        for k, (x, y, radius) in enumerate(self.exclusion_circles):
+            if math.dist(here, (x, y)) < radius:
+                return Breach(BreachKind.EXCLUSION_CIRCLE, f"inside exclusion circle {k} ({radius:g} m)")
+        if with_floor and self.min_altitude > 0 and position[2] < self.min_altitude:
+            return Breach(BreachKind.FLOOR, f"{position[2]:.1f} m below the {self.min_altitude:g} m floor")
         return None

@@ -2,7 +2,8 @@
 
 A plan is a list of items (take-off, waypoint, loiter, change speed, land, return to launch,
 camera start / stop / by distance / single capture), a geofence (inclusion polygon, maximum
-altitude above home, maximum distance from home), a cruise speed and an RTL altitude.
+altitude above home, maximum distance from home, exclusion polygons and circles, a floor while
+flying), a cruise speed and an RTL altitude.
 Positions are global (latitude/longitude in degrees, altitude above home in metres) or local
 ENU metres relative to home. Parsing errors are PlanError with one line naming the item.
 
@@ -10,7 +11,8 @@ Project YAML:
     name: survey
     cruise_speed: 4.0            # m/s
     rtl_altitude: 15.0           # m above home
-    geofence: {polygon: [[lat, lon], ...], max_altitude: 60, max_distance: 400}
+    geofence: {polygon: [[lat, lon], ...], max_altitude: 60, max_distance: 400, min_altitude: 3,
+               exclusion_polygons: [[[lat, lon], ...]], exclusion_circles: [{lat: 43.5, lon: 1.4, radius: 10}]}
     items:
       - {type: takeoff, altitude: 10}
       - {type: waypoint, lat: 43.5630, lon: 1.4816, alt: 10, acceptance_radius: 1.0, hold: 0, yaw_deg: 90}
@@ -144,6 +146,57 @@ def _item_from_yaml(doc: object, k: int) -> Item:
     return Item(kind)
 
 
+FENCE_KEYS = ("polygon", "max_altitude", "max_distance", "min_altitude", "exclusion_polygons", "exclusion_circles")
+
+
+def _polygon_from_yaml(vertices: object, what: str) -> tuple[tuple[float, float], ...]:
+    if not isinstance(vertices, list):
+        raise PlanError(f"{what}: must be a list of [lat, lon] vertices")
+    polygon = []
+    for k, vertex in enumerate(vertices):
+        if not (isinstance(vertex, list) and len(vertex) == 2 and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in vertex)):
+            raise PlanError(f"{what} vertex {k}: must be [lat, lon]")
+        polygon.append((float(vertex[0]), float(vertex[1])))
+    if polygon and len(polygon) < 3:
+        raise PlanError(f"{what} needs at least 3 vertices")
+    return tuple(polygon)
+
+
+def geofence_from_yaml(fence: object) -> Geofence:
+    """The `geofence` mapping of a YAML plan (or a fence file): inclusion `polygon`, `max_altitude`,
+    `max_distance`, `min_altitude` (floor while flying), `exclusion_polygons` (a list of vertex
+    lists) and `exclusion_circles` (a list of {lat, lon, radius}); PlanError names the bad part."""
+    if not isinstance(fence, dict):
+        raise PlanError("geofence must be a mapping")
+    unknown = set(fence) - set(FENCE_KEYS)
+    if unknown:
+        raise PlanError(f"geofence: unknown field(s) {', '.join(sorted(map(str, unknown)))} (known: {', '.join(FENCE_KEYS)})")
+    polygon = _polygon_from_yaml(fence.get("polygon") or [], "geofence polygon")
+    exclusions = fence.get("exclusion_polygons") or []
+    if not isinstance(exclusions, list):
+        raise PlanError("geofence exclusion_polygons: must be a list of polygons")
+    polygons = tuple(_polygon_from_yaml(p, f"geofence exclusion polygon {k}") for k, p in enumerate(exclusions))
+    if any(not p for p in polygons):
+        raise PlanError("geofence exclusion polygon with no vertices")
+    circles: list[tuple[float, float, float]] = []
+    raw_circles = fence.get("exclusion_circles") or []
+    if not isinstance(raw_circles, list):
+        raise PlanError("geofence exclusion_circles: must be a list of {lat, lon, radius}")
+    for k, circle in enumerate(raw_circles):
+        where = f"geofence exclusion circle {k}"
+        if not isinstance(circle, dict) or set(circle) != {"lat", "lon", "radius"}:
+            raise PlanError(f"{where}: must be {{lat, lon, radius}}")
+        lat, lon, radius = (_num(circle, key, where) for key in ("lat", "lon", "radius"))
+        if radius <= 0:
+            raise PlanError(f"{where}: radius must be > 0 m")
+        circles.append((lat, lon, radius))
+    ceiling, floor = _num(fence, "max_altitude", "geofence", 0.0), _num(fence, "min_altitude", "geofence", 0.0)
+    if floor > 0 and ceiling > 0 and floor >= ceiling:
+        raise PlanError(f"geofence floor {floor:g} m is not below its ceiling {ceiling:g} m")
+    return Geofence(polygon, ceiling, _num(fence, "max_distance", "geofence", 0.0), polygons, tuple(circles), floor)
+
+
 def plan_from_yaml_text(text: str) -> Plan:
     try:
         doc = yaml.safe_load(text)
@@ -154,17 +207,6 @@ def plan_from_yaml_text(text: str) -> Plan:
     unknown = set(doc) - {"name", "cruise_speed", "rtl_altitude", "geofence", "items"}
     if unknown:
         raise PlanError(f"plan: unknown field(s) {', '.join(sorted(unknown))}")
-    fence = doc.get("geofence") or {}
-    if not isinstance(fence, dict):
-        raise PlanError("geofence must be a mapping")
-    polygon = []
-    for k, vertex in enumerate(fence.get("polygon") or []):
-        if not (isinstance(vertex, list) and len(vertex) == 2 and all(isinstance(v, (int, float)) for v in vertex)):
-            raise PlanError(f"geofence vertex {k}: must be [lat, lon]")
-        polygon.append((float(vertex[0]), float(vertex[1])))
-    if polygon and len(polygon) < 3:
-        raise PlanError("geofence polygon needs at least 3 vertices")
-    geofence = Geofence(tuple(polygon), _num(fence, "max_altitude", "geofence", 0.0),
-                        _num(fence, "max_distance", "geofence", 0.0))
+    geofence = geofence_from_yaml(doc.get("geofence") or {})
     return Plan(tuple(_item_from_yaml(item, k) for k, item in enumerate(doc["items"])), geofence,
                 str(doc.get("name", "plan")), _num(doc, "cruise_speed", "plan", 0.0), _num(doc, "rtl_altitude", "plan", 0.0))

@@ -8,6 +8,7 @@ mapping of `mavlink_items`, which itself builds on the model: plan <- mavlink_it
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 from .mavlink_items import FRAME_GLOBAL, FRAME_GLOBAL_INT, item_from_mavlink
@@ -15,7 +16,7 @@ from .plan import NAN, Geofence, Item, Plan, PlanError, plan_from_yaml_text
 
 
 def plan_from_qgc_text(text: str) -> Plan:
-    """QGroundControl `.plan` (JSON): simple mission items, inclusion polygon geofence."""
+    """QGroundControl `.plan` (JSON): simple mission items, the geofence (geofence_from_qgc)."""
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -39,12 +40,58 @@ def plan_from_qgc_text(text: str) -> Plan:
         if not isinstance(command, int) or not isinstance(frame, int):
             raise PlanError(f"{where}: 'command' and 'frame' must be integers")
         items.append(item_from_mavlink(command, frame, values, where=where))
-    polygon: list[tuple[float, float]] = []
-    fence = doc.get("geoFence") or {}
-    for poly in fence.get("polygons") or []:
-        if poly.get("inclusion", True) and not polygon:
-            polygon = [(float(v[0]), float(v[1])) for v in poly.get("polygon", [])]
-    return Plan(tuple(items), Geofence(tuple(polygon)), "qgc-plan", float(mission.get("cruiseSpeed") or 0.0))
+    return Plan(tuple(items), geofence_from_qgc(doc.get("geoFence") or {}), "qgc-plan",
+                float(mission.get("cruiseSpeed") or 0.0))
+
+
+def _qgc_vertices(raw: object, where: str) -> tuple[tuple[float, float], ...]:
+    if not isinstance(raw, list) or len(raw) < 3:
+        raise PlanError(f"{where}: 'polygon' needs at least 3 [lat, lon] vertices")
+    try:
+        vertices = tuple((float(v[0]), float(v[1])) for v in raw)
+    except (TypeError, ValueError, IndexError):
+        raise PlanError(f"{where}: vertices must be [lat, lon] numbers") from None
+    if not all(math.isfinite(c) for v in vertices for c in v):
+        raise PlanError(f"{where}: non-finite vertex")
+    return vertices
+
+
+def geofence_from_qgc(fence: object) -> Geofence:
+    """A QGroundControl `geoFence` section: one inclusion polygon (`"inclusion": true`, the
+    default), any number of exclusion polygons (`"inclusion": false`) and exclusion circles
+    (`{"circle": {"center": [lat, lon], "radius": r}, "inclusion": false}`). Inclusion circles and
+    a second inclusion polygon have no c4d equivalent (a fence has one allowed area): PlanError."""
+    if not isinstance(fence, dict):
+        raise PlanError("geoFence must be an object")
+    inclusion: tuple[tuple[float, float], ...] = ()
+    exclusions = []
+    for k, poly in enumerate(fence.get("polygons") or []):
+        where = f"geoFence polygon {k + 1}"
+        if not isinstance(poly, dict):
+            raise PlanError(f"{where}: must be an object")
+        vertices = _qgc_vertices(poly.get("polygon"), where)
+        if not poly.get("inclusion", True):
+            exclusions.append(vertices)
+        elif inclusion:
+            raise PlanError(f"{where}: a second inclusion polygon (c4d keeps one allowed area)")
+        else:
+            inclusion = vertices
+    circles = []
+    for k, raw in enumerate(fence.get("circles") or []):
+        where = f"geoFence circle {k + 1}"
+        circle = raw.get("circle") if isinstance(raw, dict) else None
+        if not isinstance(circle, dict):
+            raise PlanError(f"{where}: needs a 'circle' with 'center' and 'radius'")
+        if raw.get("inclusion", True):
+            raise PlanError(f"{where}: inclusion circles are not supported (use the max distance from home)")
+        try:
+            lat, lon, radius = float(circle["center"][0]), float(circle["center"][1]), float(circle["radius"])
+        except (KeyError, TypeError, ValueError, IndexError):
+            raise PlanError(f"{where}: 'center' must be [lat, lon] and 'radius' a number") from None
+        if not (math.isfinite(lat) and math.isfinite(lon) and math.isfinite(radius) and radius > 0):
+            raise PlanError(f"{where}: needs a finite centre and a radius > 0")
+        circles.append((lat, lon, radius))
+    return Geofence(inclusion, exclusion_polygons=tuple(exclusions), exclusion_circles=tuple(circles))
 
 
 WPL_HEADER = "QGC WPL 110"

@@ -3,7 +3,9 @@
 Checks: item count; coordinates present and finite; altitude above home within the geofence's
 (or the vehicle's) maximum and above a minimum clearance; horizontal distance from home;
 every leg (segment between consecutive positions, home → take-off → … → RTL) inside the
-geofence inclusion polygon (both ends inside and no crossing of a polygon edge); an endurance
+geofence inclusion polygon (both ends inside and no crossing of a polygon edge) and through none
+of its exclusion polygons / circles; take-off, waypoint and loiter altitudes not below the
+geofence floor (take-off and landing pass through it); an endurance
 estimate (legs at the cruise speed in force, holds, climbs and descents) against the remaining
 flight time. A plan with any error is rejected as a whole; warnings do not reject. A waypoint
 or loiter flown from the ground (no take-off item before it, as PX4 allows) is preceded by a
@@ -55,6 +57,8 @@ class IssueKind(Enum):
     OUTSIDE_ALTITUDE_BAND = "outside the altitude band"
     TOO_FAR = "too far from home"
     LEAVES_POLYGON = "leaves the polygon"
+    ENTERS_EXCLUSION = "enters an exclusion zone"
+    BELOW_FLOOR = "below the geofence floor"
     SPEED = "speed above the vehicle's"
     RTL_ALTITUDE = "RTL altitude above the ceiling"
     ENDURANCE = "exceeds the endurance"
@@ -154,6 +158,9 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
                 error(IssueKind.LEAVES_POLYGON, k, f"{label(k)}: outside the geofence polygon")
             elif point_inside(position[:2], list(fence.polygon)):
                 error(IssueKind.LEAVES_POLYGON, k, f"{label(k)}: leg leaves the geofence polygon")
+        zone = fence.leg_exclusion(position[:2], target[:2])
+        if zone and not any(e.kind is IssueKind.ENTERS_EXCLUSION and e.item == k for e in errors):
+            error(IssueKind.ENTERS_EXCLUSION, k, f"{label(k)}: leg enters the geofence's {zone}")
         horizontal = math.hypot(target[0] - position[0], target[1] - position[1])
         vertical = target[2] - position[2]
         length += horizontal + abs(vertical)
@@ -164,6 +171,9 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
         if item.type == "takeoff":
             if not (0 < item.z <= ceiling):
                 error(IssueKind.TAKEOFF_ALTITUDE, k, f"{label(k)}: take-off altitude {item.z:g} m outside (0, {ceiling:g}] m")
+            elif fence.min_altitude > 0 and item.z < fence.min_altitude:
+                error(IssueKind.BELOW_FLOOR, k, f"{label(k)}: take-off altitude {item.z:g} m below the geofence floor "
+                                                f"{fence.min_altitude:g} m")
             fly_to(k, (position[0], position[1], item.z))
             airborne = True
         elif item.type in ("waypoint", "loiter"):
@@ -178,6 +188,9 @@ def validate(plan: Plan, home: GeoOrigin, limits: VehicleLimits = VehicleLimits(
                 error(IssueKind.ABOVE_CEILING, k, f"{label(k)}: altitude {target[2]:g} m above the maximum {ceiling:g} m")
             elif target[2] < MIN_ALTITUDE:
                 error(IssueKind.BELOW_MINIMUM, k, f"{label(k)}: altitude {target[2]:g} m below the minimum {MIN_ALTITUDE:g} m")
+            elif fence.min_altitude > 0 and target[2] < fence.min_altitude:
+                error(IssueKind.BELOW_FLOOR, k, f"{label(k)}: altitude {target[2]:g} m below the geofence floor "
+                                                f"{fence.min_altitude:g} m")
             distance = math.hypot(target[0], target[1])
             if fence.max_distance > 0 and distance > fence.max_distance:
                 error(IssueKind.TOO_FAR, k,
@@ -228,7 +241,8 @@ def ceiling_of(fence: Geofence, limits: VehicleLimits) -> float:
 def check_goto(target: Item, position: tuple[float, float, float], fence: Geofence, home: GeoOrigin,
                limits: VehicleLimits = VehicleLimits()) -> list[PlanIssue]:
     """Why a go-to (DO_REPOSITION) from `position` (ENU, m) to `target` must be refused: the
-    same altitude, distance and polygon rules as a plan leg, applied to the one leg flown now."""
+    same altitude, distance, polygon, exclusion and floor rules as a plan leg, applied to the one
+    leg flown now (`fence`: the fence in force, geofence/active)."""
     if not all(math.isfinite(v) for v in (target.x, target.y, target.z)):
         return [PlanIssue(IssueKind.NO_POSITION, None, "go-to target needs a finite position and altitude")]
     if target.frame == GLOBAL and not (-90 <= target.x <= 90 and -180 <= target.y <= 180):
@@ -246,4 +260,10 @@ def check_goto(target: Item, position: tuple[float, float, float], fence: Geofen
                                                          f"{local.max_distance:g} m"))
     if not local.leg_inside(position[:2], point[:2]):
         issues.append(PlanIssue(IssueKind.LEAVES_POLYGON, None, "go-to leg leaves the geofence polygon"))
+    zone = local.leg_exclusion(position[:2], point[:2])
+    if zone:
+        issues.append(PlanIssue(IssueKind.ENTERS_EXCLUSION, None, f"go-to leg enters the geofence's {zone}"))
+    if local.min_altitude > 0 and point[2] < local.min_altitude:
+        issues.append(PlanIssue(IssueKind.BELOW_FLOOR, None, f"go-to altitude {point[2]:g} m below the geofence floor "
+                                                             f"{local.min_altitude:g} m"))
     return issues
