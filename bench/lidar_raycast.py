@@ -192,7 +192,9 @@ def flight(node, executor, world_file: Path | None, beams: int, rate: float, sec
             "core_jitter_p99": statistics.median([m.release_jitter_p99_us for m in stats]) if stats else math.nan,
             "sim_overruns": last["overruns"] - first["overruns"], "imu_late": last["imu_late"] - first["imu_late"],
             "imu_dropped": last["imu_dropped"] - first["imu_dropped"],
-            "imu_rate": (last["imu_samples"] - first["imu_samples"]) / wall, "scan_hz": len(scans) / wall,
+            "imu_late_percent": 100 * (last["imu_late"] - first["imu_late"])
+            / max(1.0, last["imu_samples"] - first["imu_samples"]),
+            "scan_hz": len(scans) / wall,
             "cpu_sim": cpu["sim"], "cpu_perception": cpu["perception"], "cpu_total": sum(cpu.values()),
             "stall_median": statistics.median(inside) if inside else math.nan, "stall_worst": max(inside, default=math.nan),
             "stall_seconds": sum(1 for ms in inside if ms > STALL_MS)}
@@ -243,8 +245,8 @@ def main() -> None:
             ("core worst tick load [%]", "core_load_max", "{:.1f}", max),
             ("core release jitter p99 [µs]", "core_jitter_p99", "{:.0f}", statistics.median),
             ("sim overruns (sum)", "sim_overruns", "{:.0f}", sum), ("sim IMU late (sum)", "imu_late", "{:.0f}", sum),
-            ("sim IMU dropped (sum)", "imu_dropped", "{:.0f}", sum), ("sim IMU samples [Hz]", "imu_rate", "{:.1f}",
-                                                                    statistics.median),
+            ("sim IMU dropped (sum)", "imu_dropped", "{:.0f}", sum),
+            ("sim IMU late [% of samples]", "imu_late_percent", "{:.2f}", statistics.median),
             ("sensors/scan received [Hz]", "scan_hz", "{:.1f}", statistics.median),
             ("CPU sim [%]", "cpu_sim", "{:.1f}", statistics.median),
             ("CPU perception [%]", "cpu_perception", "{:.1f}", statistics.median),

@@ -168,7 +168,8 @@ class SimNode:
         # periods: the imu task then publishes every sample with its own stamp, Simulation.imu)
         self.executive = CyclicExecutive(schedule, tasks, clock, name="sim", input_phase=self.drain,
                                          output_phase=self.step_done if self.lockstep else None,
-                                         report_period_s=3600, manage_gc=True, catch_up=set(SENSOR_TASKS))
+                                         report_period_s=3600, manage_gc=True,
+                                         catch_up={*SENSOR_TASKS, *world_rates})
 
     def scan(self, k: int) -> None:
         """sensors/scan: the lidar rendered at the vehicle's true position and heading."""
