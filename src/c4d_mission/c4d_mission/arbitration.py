@@ -18,6 +18,10 @@ go-to commanded outside the plan. The rules:
   no new-leg GOTO can reach the core after the command and undo an accepted HOLD / LAND / mode.
 - mission/control start and resume cancel a detour (the plan takes over again); pause asks the
   core to HOLD.
+- The fence in force (`fence`, fence.ActiveFence) validates plans and go-to targets; geofence/set
+  replaces it (`set_geofence`). A leg that the fence in force blocks — the one being flown when a
+  new fence arrives, or any new leg after — is not flown: the mission pauses (a go-to or RTL is
+  cancelled) and the core is asked to HOLD, with the reason in `notices`.
 - `step()` runs the mission before the detour every tick, so the requests both send reach the core
   in that order: a plan's final HOLD always precedes the GOTO of an RTL commanded at once (the
   executor asks GOTO on every new leg and completes a plan in the step that passes its last item).
@@ -34,6 +38,7 @@ from c4d_common.plan_validation import IssueKind, PlanIssue, ValidationResult, V
 from c4d_common.vehicle import Command, CommandResult, Landed, MissionAction, MissionStatus, UploadRefusal, VehicleCommandId
 
 from .executor import Checkpoint, MissionExecutor, Output, Vehicle
+from .fence import ActiveFence, leg_blocked, refusal
 
 Vec = tuple[float, float, float]
 # forwarded commands that take the vehicle from the plan when the core accepts them
@@ -101,6 +106,9 @@ class CommandArbiter:
         self._next_id = 1
         self._awaiting = 0  # TAKES_VEHICLE commands forwarded, the core's answer not yet in
         self._awaiting_since: float | None = None
+        self.fence = ActiveFence()
+        self.notices: list[str] = []  # for the log: legs blocked by the fence (the node drains it)
+        self._checked_legs: dict[int, object] = {}  # runner id -> the last leg checked against the fence
 
     # ------------------------------------------------------------------ plans
     def accept(self, plan: Plan, home: GeoOrigin | None, endurance_s: float | None) -> Acceptance:
@@ -112,6 +120,7 @@ class CommandArbiter:
         if endurance_s is None:
             return _refused(IssueKind.BATTERY_UNKNOWN, "plan: battery state unknown yet (no battery report): "
                                                        "endurance not checked, retry")
+        plan = self.fence.for_plan(plan)  # a plan without a fence flies under one set in flight
         result = validate(plan, home, self.limits, endurance_s)
         if not result.ok:
             return Acceptance(None, result.issues, result.notices, result)
@@ -120,6 +129,7 @@ class CommandArbiter:
         plan = plan.with_id(self._next_id)
         self._next_id += 1
         self.mission.load(plan, home)
+        self.fence.plan_accepted(plan)
         return Acceptance(plan, (), result.notices, result)
 
     def restore(self, plan: Plan, home: GeoOrigin, checkpoint: Checkpoint, status: MissionStatus) -> None:
@@ -200,8 +210,7 @@ class CommandArbiter:
     def _go_to(self, vehicle: VehicleView, force: bool, target: Item | None) -> Decision:
         if vehicle.home is None or not vehicle.armed or vehicle.landed != Landed.IN_AIR or target is None:
             return Decision(CommandResult.DENIED, "go-to needs a flying vehicle (take off first)")
-        fence = self.mission.plan.geofence if self.mission.plan else Geofence()
-        issues = check_goto(target, vehicle.position, fence, vehicle.home, self.limits)
+        issues = check_goto(target, vehicle.position, self.fence.fence, vehicle.home, self.limits)
         if issues and (not force or any(i.kind.malformed for i in issues)):
             return Decision(CommandResult.DENIED, "; ".join(map(str, issues)))
         self.mission.pause()  # a running mission can be resumed after the go-to
@@ -209,6 +218,49 @@ class CommandArbiter:
         self.detour.start()
         forced = f" (forced: {'; '.join(map(str, issues))})" if issues else ""
         return _accepted("going to the target" + forced)
+
+    # ------------------------------------------------------------------ geofence/set
+    def set_geofence(self, fence: Geofence, force: bool, vehicle: VehicleView) -> Decision:
+        """Replace the fence in force at once (module docstring of fence.py): refused when the
+        vehicle is outside it unless `force`; a leg being flown that it blocks is stopped (HOLD)."""
+        flying = vehicle.armed and vehicle.landed == Landed.IN_AIR
+        why = refusal(fence, force, vehicle.home, vehicle.position, flying)
+        if why:
+            return Decision(CommandResult.DENIED, why)
+        self.fence.set(fence)
+        self._checked_legs.clear()
+        stopped = [self._stop_blocked(runner, vehicle.position) for runner in (self.mission, self.detour)]
+        said = [s for s in stopped if s]
+        message = ("fence cleared" if fence.empty else "fence in force") + (f"; {'; '.join(said)}" if said else "")
+        return Decision(CommandResult.ACCEPTED, message, core=(Command.HOLD,) if said else ())
+
+    def _stop_blocked(self, runner: MissionExecutor, position: Vec) -> str:
+        """Stop `runner` when the fence in force blocks its leg from `position` (the mission pauses,
+        a detour is cancelled); the reason, "" when not blocked or not flying a leg."""
+        leg = runner.leg
+        if runner.status != MissionStatus.ACTIVE or leg is None or runner.home is None:
+            return ""
+        why = leg_blocked(self.fence.fence, runner.home, position, leg[1])
+        if not why:
+            return ""
+        if runner is self.mission:
+            self.mission.pause()
+            text = f"mission paused: the leg to item {self.mission.current + 1} {why}"
+        else:
+            self.detour.clear()
+            text = f"go-to / RTL cancelled: its leg {why}"
+        self.notices.append(text)
+        return text
+
+    def _check_new_leg(self, runner: MissionExecutor, out: Output, position: Vec) -> None:
+        """Each new leg is checked once against the fence in force; a blocked one is not flown."""
+        leg = runner.leg
+        if leg is None or self._checked_legs.get(id(runner)) is leg:
+            return
+        self._checked_legs[id(runner)] = leg
+        if self._stop_blocked(runner, position):
+            out.requests.append((Command.HOLD, 0.0))  # after the leg's GOTO: the core keeps the HOLD
+            out.setpoint = None
 
     # ------------------------------------------------------------------ guidance
     def step(self, now: float, dt: float, vehicle: Vehicle) -> list[tuple[MissionExecutor, Output]]:
@@ -220,7 +272,12 @@ class CommandArbiter:
                 return [(self.mission, Output()), (self.detour, Output())]
             self._awaiting = 0  # no answer: the plan goes on
         self._awaiting_since = None
-        return [(runner, runner.step(now, dt, vehicle)) for runner in (self.mission, self.detour)]
+        outputs = []
+        for runner in (self.mission, self.detour):
+            out = runner.step(now, dt, vehicle)
+            self._check_new_leg(runner, out, vehicle.position)
+            outputs.append((runner, out))
+        return outputs
 
 
 def goto_target(latitude: float, longitude: float, altitude: float, yaw: float) -> Item:

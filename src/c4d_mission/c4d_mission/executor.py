@@ -73,6 +73,7 @@ class LegTracker:
 
     def __init__(self, start: Vec, end: Vec, speed: float, accel: float = 1.5) -> None:
         self.a, self.b = start, end
+        self.ends = (start, end)
         self.length = math.dist(start, end)
         self.dir = tuple((e - s) / self.length for s, e in zip(start, end, strict=True)) if self.length > 1e-6 else (0, 0, 0)
         self.speed, self.accel = speed, accel
@@ -192,6 +193,12 @@ class MissionExecutor:
     def abort(self) -> None:
         if self.status in (MissionStatus.ACTIVE, MissionStatus.PAUSED):
             self.status = MissionStatus.ABORTED
+
+    @property
+    def leg(self) -> tuple[Vec, Vec] | None:
+        """The straight leg being flown (start, end; local ENU), None between legs. A new leg is a
+        new tuple: the arbiter checks each one against the fence in force once."""
+        return self._tracker.ends if self._tracker is not None else None
 
     @property
     def progress(self) -> float:

@@ -3,10 +3,11 @@
 Why: the supervisor restarts a mission node that dies (SIGKILL, crash) within a second or two;
 without a record the new process comes up with no plan, the core holds once the guidance
 setpoints go stale and the flight never completes. `MissionJournal` writes the plan (every
-field of the `Plan` model, so it round-trips exactly) and the executor's `Checkpoint` to one
-JSON file whenever they change (upload, start, item advance, pause, completion, abort, clear —
-never per tick), atomically: a temporary file in the same directory, fsync, `os.replace`, so a
-kill mid-write leaves the previous journal intact. `resume_status` decides what a restarted node
+field of the `Plan` model, so it round-trips exactly), the executor's `Checkpoint` and the fence
+in force (geofence/active: a fence set in flight survives a restart) to one JSON file whenever
+they change (upload, start, item advance, pause, completion, abort, clear, fence set — never
+per tick), atomically: a temporary file in the same directory, fsync, `os.replace`, so a kill
+mid-write leaves the previous journal intact. `resume_status` decides what a restarted node
 does with an active mission: continue it only when the vehicle still flies it (armed, in the
 air, AUTO, no failsafe), otherwise keep the plan paused or aborted with the reason.
 ROS-free; unit-tested in test/test_mission_journal.py.
@@ -25,6 +26,7 @@ from c4d_common.plan import Geofence, Item, Plan
 from c4d_common.vehicle import FailsafeAction, Landed, MissionStatus, Mode
 
 from .executor import Checkpoint
+from .fence import FenceSource, geofence_from_dict
 
 VERSION = 1
 FLYING = (Landed.IN_AIR, Landed.TAKEOFF, Landed.LANDING)
@@ -36,10 +38,12 @@ class JournalError(ValueError):
 
 @dataclass(frozen=True)
 class JournalEntry:
-    """One journal record: the plan in force (None after a clear) and the progress through it."""
+    """One journal record: the plan in force (None after a clear), the progress through it and the
+    fence in force with its source (None: none accepted or set; journals before issue 18 have none)."""
 
     plan: Plan | None
     checkpoint: Checkpoint
+    fence: tuple[Geofence, FenceSource] | None = None
 
 
 def plan_to_dict(plan: Plan) -> dict[str, Any]:
@@ -48,9 +52,7 @@ def plan_to_dict(plan: Plan) -> dict[str, Any]:
 
 def plan_from_dict(doc: dict[str, Any]) -> Plan:
     """The inverse of plan_to_dict (TypeError / KeyError / ValueError on a malformed record)."""
-    fence = doc["geofence"]
-    geofence = Geofence(tuple((float(a), float(b)) for a, b in fence["polygon"]), float(fence["max_altitude"]),
-                        float(fence["max_distance"]))
+    geofence = geofence_from_dict(doc["geofence"])
     items = tuple(Item(**item) for item in doc["items"])
     return Plan(items, geofence, str(doc["name"]), float(doc["cruise_speed"]), float(doc["rtl_altitude"]),
                 int(doc["plan_id"]))
@@ -82,6 +84,9 @@ class MissionJournal:
                 raise JournalError(f"{self.path}: version {doc.get('version')!r}, expected {VERSION}")
             plan = plan_from_dict(doc["plan"]) if doc["plan"] is not None else None
             checkpoint = _checkpoint_from_dict(doc["checkpoint"])
+            raw_fence = doc.get("fence")
+            fence = (geofence_from_dict(raw_fence["fence"]), FenceSource(raw_fence["source"])) \
+                if raw_fence is not None else None
         except JournalError:
             raise
         except (ValueError, TypeError, KeyError, AttributeError) as exc:
@@ -90,12 +95,13 @@ class MissionJournal:
             raise JournalError(f"{self.path}: plan id {plan.plan_id} but progress of plan {checkpoint.plan_id}")
         if plan is not None and not 0 <= checkpoint.current <= len(plan.items):
             raise JournalError(f"{self.path}: item {checkpoint.current} outside the plan's {len(plan.items)} items")
-        return JournalEntry(plan, checkpoint)
+        return JournalEntry(plan, checkpoint, fence)
 
     def save(self, entry: JournalEntry) -> None:
         """Replace the journal with `entry` atomically (OSError when the file cannot be written)."""
         doc = {"version": VERSION, "plan": plan_to_dict(entry.plan) if entry.plan is not None else None,
-               "checkpoint": {**asdict(entry.checkpoint), "status": entry.checkpoint.status.name}}
+               "checkpoint": {**asdict(entry.checkpoint), "status": entry.checkpoint.status.name},
+               "fence": None if entry.fence is None else {"source": entry.fence[1].value, "fence": asdict(entry.fence[0])}}
         text = json.dumps(doc, indent=1)  # NaN (an item's "current" coordinate) round-trips as NaN
         self.path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", dir=self.path.parent)

@@ -9,12 +9,15 @@ hold and set mode are forwarded to the core's gnc/command; once the core accepts
 mode pause the mission (resumed by mission/control resume), land and disarm abort it; a refused
 command changes nothing). Publishes guidance/setpoint (50 Hz while a mission or RTL
 flies, and only while the core is in AUTO: it owns no stream in OFFBOARD or a pilot mode),
-mission/state (on change and at 5 Hz) and mission/plan (latched). Mode changes reach
-the core only through its latched gnc/command interface.
+mission/state (on change and at 5 Hz), mission/plan (latched) and geofence/active (latched: the
+fence in force — the accepted plan's, or one set through the geofence/set service, which applies
+at once in flight; rules in fence.py and docs/mission.md). Mode changes reach the core only
+through its latched gnc/command interface.
 Parameters: plan_file (loaded and validated once home is known), min_battery (0.2),
 takeoff_altitude (2.5 m: least take-off altitude of a plan without a take-off item),
-hover_current_a (endurance estimate, 20 A), state_file (the mission journal: plan and progress
-persisted on every change, so a restarted node resumes an active mission; empty: none).
+hover_current_a (endurance estimate, 20 A), state_file (the mission journal: plan, progress and
+the fence in force persisted on every change, so a restarted node resumes an active mission and
+republishes the fence; empty: none).
 
 The node only maps ROS to logic: pre-arm checks (prearm.PreArmChecks), command arbitration and
 plan acceptance (arbitration.CommandArbiter), plan execution (executor.MissionExecutor), the
@@ -49,17 +52,19 @@ from c4d_common.vehicle import (
     UploadRefusal,
     VehicleCommandId,
 )
+from c4d_interfaces.msg import Geofence as GeofenceMsg
 from c4d_interfaces.msg import GuidanceSetpoint, MissionPlan, MissionState, VehicleState, VehicleStatus
-from c4d_interfaces.srv import DownloadMission, MissionControl, UploadMission, VehicleCommand
+from c4d_interfaces.srv import DownloadMission, MissionControl, SetGeofence, UploadMission, VehicleCommand
 from c4d_ros import manifest as m
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.drain import LatestSampler
 from c4d_ros.params import ParameterError, Spec, declare_all
-from c4d_ros.plan_msgs import plan_from_msg, plan_to_msg
+from c4d_ros.plan_msgs import geofence_from_msg, geofence_to_msg, plan_from_msg, plan_to_msg
 from c4d_ros.stamps import s_to_stamp
 
 from .arbitration import Acceptance, CommandArbiter, Decision, VehicleView, goto_target
 from .executor import Checkpoint, MissionExecutor, Vehicle
+from .fence import FenceSource
 from .mission_journal import JournalEntry, JournalError, MissionJournal, VehicleCheck, resume_status
 from .prearm import PreArmChecks, PreArmInputs
 
@@ -100,7 +105,14 @@ class MissionNode:
         self.journal_ok = True
         self.pending = self._read_journal()  # a plan to take back once home (and the vehicle status) is known
         self.status_warn_at: float | None = time.monotonic() + STATUS_WARN_S  # None once warned
-        self.plan_file_tried = self.pending is not None
+        self.plan_file_tried = self.pending is not None and self.pending.plan is not None
+        self.journalled_fence = self.arbiter.fence.revision  # the fence revision last written
+        if self.pending is not None and self.pending.fence is not None:  # geodetic: in force at once, no home needed
+            self.arbiter.fence.restore(*self.pending.fence)
+            self.journalled_fence = self.arbiter.fence.revision
+        self.published_fence = 0  # the fence revision last published on geofence/active
+        self.pub_fence = node.create_publisher(GeofenceMsg, m.GEOFENCE.name, m.GEOFENCE.qos)
+        self._publish_fence()
         self.pub_setpoint = node.create_publisher(GuidanceSetpoint, m.SETPOINT.name, m.SETPOINT.qos)
         self.pub_state = node.create_publisher(MissionState, m.MISSION_STATE.name, m.MISSION_STATE.qos)
         self.pub_plan = node.create_publisher(MissionPlan, m.MISSION_PLAN.name, m.MISSION_PLAN.qos)
@@ -114,6 +126,7 @@ class MissionNode:
         node.create_service(DownloadMission, m.MISSION_DOWNLOAD.name, self._on_download)
         node.create_service(MissionControl, m.MISSION_CONTROL.name, self._on_control)
         node.create_service(VehicleCommand, m.VEHICLE_COMMAND.name, self._on_vehicle_command)
+        node.create_service(SetGeofence, m.SET_GEOFENCE.name, self._on_set_geofence)
         node.create_timer(TICK_S, self._tick, callback_group=self.loop)
 
     def _subscribe(self) -> None:
@@ -148,8 +161,8 @@ class MissionNode:
     def _prearm_inputs(self) -> PreArmInputs:
         needed = VehicleState.VALID_ATTITUDE | VehicleState.VALID_POSITION_XY | VehicleState.VALID_ORIGIN
         ready = self.state is not None and self.state.valid & needed == needed
-        home, plan = self._home(), self.arbiter.mission.plan
-        fence = LocalFence.from_geofence(plan.geofence, home) if plan is not None and home is not None else None
+        home, active = self._home(), self.arbiter.fence.fence
+        fence = LocalFence.from_geofence(active, home) if not active.empty and home is not None else None
         battery = self.battery.percentage if self.battery is not None else None
         return PreArmInputs(ready, self._position(), self.sensor_ok, battery, fence)
 
@@ -178,7 +191,7 @@ class MissionNode:
         except JournalError as exc:
             self.node.get_logger().warning(f"mission journal unusable, starting clean: {exc}")
             return None
-        return entry if entry is not None and entry.plan is not None else None
+        return entry if entry is not None and (entry.plan is not None or entry.fence is not None) else None
 
     def _restore(self) -> bool:
         """Take back the journalled plan once home and the vehicle status are known; True when done.
@@ -204,6 +217,9 @@ class MissionNode:
         verdict = resume_status(entry.checkpoint.status, vehicle)
         plan, k, n = entry.plan, entry.checkpoint.current, len(entry.plan.items)
         self.arbiter.restore(plan, home, entry.checkpoint, verdict.status)
+        if entry.fence is None:  # a journal from before the fence was journalled: the plan's is in force
+            self.arbiter.fence.plan_accepted(plan)
+            self._publish_fence()
         self.pub_plan.publish(plan_to_msg(plan))
         log = self.node.get_logger()
         if verdict.resumed:
@@ -217,18 +233,30 @@ class MissionNode:
 
     def _write_journal(self) -> None:
         """Persist the plan and progress when they changed since the last write (never per tick)."""
-        mission = self.arbiter.mission
+        mission, fence = self.arbiter.mission, self.arbiter.fence
         checkpoint = mission.checkpoint()
-        if self.journal is None or checkpoint == self.journalled:
+        if self.journal is None or (checkpoint == self.journalled and fence.revision == self.journalled_fence):
             return
+        self.journalled_fence = fence.revision
+        in_force = (fence.fence, fence.source) if fence.source != FenceSource.NONE else None
         try:
-            self.journal.save(JournalEntry(mission.plan, checkpoint))
+            self.journal.save(JournalEntry(mission.plan, checkpoint, in_force))
             self.journalled, self.journal_ok = checkpoint, True
         except OSError as exc:
             if self.journal_ok:  # once per failure streak, retried at the next change
                 self.node.get_logger().warning(f"mission journal not written ({self.journal.path}): {exc}")
             self.journal_ok = False
             self.journalled = checkpoint
+
+    def _publish_fence(self) -> None:
+        """geofence/active (latched) once per change of the fence in force."""
+        fence = self.arbiter.fence
+        if fence.source == FenceSource.NONE or fence.revision == self.published_fence:
+            return
+        self.published_fence = fence.revision
+        self.pub_fence.publish(geofence_to_msg(fence.fence))
+        what = "cleared" if fence.fence.empty else "in force"
+        self.node.get_logger().info(f"geofence {what} (from the {fence.source.value})")
 
     # ------------------------------------------------------------------ services
     def _endurance(self) -> float | None:
@@ -248,6 +276,7 @@ class MissionNode:
             self.node.get_logger().info(
                 f"plan {verdict.plan.plan_id} '{verdict.plan.name}' accepted: {len(verdict.plan.items)} items, "
                 f"{verdict.validation.path_length:.0f} m, ~{verdict.validation.duration:.0f} s")
+            self._publish_fence()
         return verdict
 
     def _on_upload(self, request: Any, response: Any) -> Any:
@@ -280,6 +309,31 @@ class MissionNode:
         response.result, response.message = int(decision.result), decision.message
         response.state = self._state_msg()
         return response
+
+    def _on_set_geofence(self, request: Any, response: Any) -> Any:
+        """geofence/set: validate (malformed → refused with the reason), then the arbiter decides
+        (vehicle outside → refused unless force; a blocked leg → HOLD); published at once."""
+        try:
+            fence = geofence_from_msg(request.fence)
+        except PlanError as exc:
+            response.result, response.message = int(CommandResult.DENIED), str(exc)
+            self.node.get_logger().warning(f"geofence/set refused: {exc}")
+            return response
+        decision = self.arbiter.set_geofence(fence, bool(request.force), self._view())
+        for command in decision.core:
+            self._send_core(command)
+        response.result, response.message = int(decision.result), decision.message
+        if decision.result == CommandResult.ACCEPTED:
+            self._publish_fence()
+            self._drain_notices()
+        else:
+            self.node.get_logger().warning(f"geofence/set refused: {decision.message}")
+        return response
+
+    def _drain_notices(self) -> None:
+        for notice in self.arbiter.notices:
+            self.node.get_logger().warning(notice)
+        self.arbiter.notices.clear()
 
     async def _on_vehicle_command(self, request: Any, response: Any) -> Any:
         c = request.command
@@ -334,6 +388,7 @@ class MissionNode:
                 if out.setpoint is not None and self.status.flight_mode == Mode.AUTO:
                     # the core follows guidance/setpoint in AUTO only (it owns no stream in OFFBOARD or a pilot mode)
                     self.pub_setpoint.publish(setpoint_msg(t, *out.setpoint))
+        self._drain_notices()
         mission = self.arbiter.mission
         key = (mission.plan.plan_id if mission.plan else 0, int(mission.status), mission.current, mission.last_reached)
         if key != self.last_state_key or t - self.last_state_pub >= STATE_HEARTBEAT_S:
