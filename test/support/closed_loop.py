@@ -67,6 +67,7 @@ class ClosedLoop:
         self.record_every = 1
         self.position_lost_at: float | None = None  # set to a time to simulate GNSS loss from then on
         self.range_lost = False  # no range finder reading (touchdown must be found from the velocity)
+        self.input_hook: Callable[[float], None] | None = None  # called each input phase with the time (extra inputs)
         core_functions = self.core.task_functions()
         functions: dict[str, Callable[[int], None]] = {}
         for task in self.schedule.tasks:
@@ -112,6 +113,8 @@ class ClosedLoop:
         inputs = self.core.inputs
         inputs.now, inputs.state = now, state
         inputs.gyro, inputs.gyro_stamp = state.angular_velocity, now
+        if self.input_hook is not None:
+            self.input_hook(now)
 
     def _output(self, k: int) -> None:
         out = self.core.out

@@ -24,7 +24,8 @@ scaled by `gain` [m/s per unit force] and saturated at `max_repulsion` [m/s] (a 
 cannot be infinite; the potential is). On top, a braking cap bounds the speed of approach to every
 surface (relative to the surface's own velocity, so movers count with their closing speed) by the
 speed that still stops `margin` outside the protection radius with the vehicle's velocity-loop lag
-tau and deceleration a: v·tau + v^2/(2a) = d - r - margin. The cap is what guarantees "never
+tau and deceleration a: v·tau + v^2/(2a) = d - r - margin (minus closing speed x tau for a mover
+coming closer: it keeps coming while the vehicle responds). The cap is what guarantees "never
 crosses" at any speed (the braking margin v^2/2a of the fence); the APF shapes the motion near
 surfaces and pushes back out of the protection zone.
 
@@ -315,7 +316,10 @@ class Barrier:
             for c in contacts:
                 n, s = c.normal, c.velocity
                 approach = -((vx - s[0]) * n[0] + (vy - s[1]) * n[1] + (vz - s[2]) * n[2])
-                limit = p.stop_speed(c.distance - p.protection_radius - p.margin)
+                # a closing mover keeps coming while the vehicle's velocity loop responds: its closest point
+                # is shifted by (closing speed) x tau
+                closing = max(0.0, s[0] * n[0] + s[1] * n[1] + s[2] * n[2])
+                limit = p.stop_speed(c.distance - p.protection_radius - p.margin - closing * p.response_time)
                 if approach > limit + 1e-9:
                     excess = approach - limit
                     vx, vy, vz = vx + excess * n[0], vy + excess * n[1], vz + excess * n[2]

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 from c4d_common import quat
 from c4d_common.airframe import GRAVITY, Airframe
+from c4d_common.barrier import Barrier, BarrierParams, FenceGeometry, Obstacle
 from c4d_common.vehicle import Command, Landed, Level, Mode, Nav, SetpointSource
 
 from .control.mixer import Mixer, MixResult
@@ -75,6 +76,9 @@ class Inputs:
     gyro: Vec | None = None
     gyro_stamp: float = -math.inf
     setpoints: SetpointInputs[Setpoint] = field(default_factory=SetpointInputs)
+    obstacles: tuple[Obstacle, ...] = ()  # local ENU, as perception/surroundings last said (converted on arrival)
+    obstacles_stamp: float = -math.inf  # [s] when they were received; older than OBSTACLE_TIMEOUT_S: ignored
+    fence: FenceGeometry | None = None  # geofence/active in local ENU (converted when it or home changes)
 
 
 @dataclass
@@ -114,12 +118,15 @@ SETPOINT_TIMEOUT_S = 0.5
 LANDED_TIME_S = 1.0
 LIFTOFF_MARGIN_M = 0.3  # OFFBOARD on the ground: a position target this far above the vehicle (or climb velocity) lifts off
 BRAKE_ACCEL = 4.0  # [m/s^2] stale stream: hold at the point a brake at this deceleration would reach
+OBSTACLE_TIMEOUT_S = 1.0  # obstacles not refreshed for this long (perception silent) are dropped
+AVOID_MIN_HEIGHT_M = 1.0  # take-off and landing: the barrier acts only above this height over the ground
 
 
 class GncCore:
     TASKS = ("state_update", "guidance", "position_control", "attitude_control", "rate_control", "mixer")
 
-    def __init__(self, airframe: Airframe, tick_s: float, default_takeoff_altitude: float = 2.5) -> None:
+    def __init__(self, airframe: Airframe, tick_s: float, default_takeoff_altitude: float = 2.5,
+                 barrier: BarrierParams | None = None, avoidance: bool = True) -> None:
         self.af = airframe
         self.tick_s = tick_s
         self.default_takeoff_altitude = default_takeoff_altitude
@@ -144,6 +151,8 @@ class GncCore:
         self.landing_velocity: Vec = (0.0, 0.0, 0.0)
         self.active: Setpoint | None = None
         self.following = False  # the owner's stream steered the last guidance step
+        # DAA and geofence preservation (c4d_common.barrier, docs/daa.md); None: disabled
+        self.barrier: Barrier | None = Barrier(barrier) if avoidance else None
 
     # ----------------------------------------------------------------- setpoint inputs
     def receive_setpoint(self, source: SetpointSource, setpoint: Setpoint) -> bool:
@@ -205,6 +214,8 @@ class GncCore:
         for req in pending:
             self._apply(req)
         if pending:  # the status published after a mode change names the new owner, not the last guidance step's
+            if self.barrier is not None:
+                self.barrier.reset()  # a new mode or target source: a detour or stall timer does not carry over
             self.out.source = self._steering_source(self.inputs.setpoints.latest(owner(self.out.mode, self.out.nav)))
 
     def _steering_source(self, setpoint: Setpoint | None) -> SetpointSource:
@@ -389,15 +400,55 @@ class GncCore:
             v_sp = [v if math.isfinite(v) else 0.0 for v in velocity_ff]
         else:
             v_sp = None
+        shield = self.barrier is not None and self._avoiding(s)
         if v_sp is not None:
+            if shield:
+                target = sp.position if sp.level == Level.POSITION and math.isfinite(sp.position[0]) and \
+                    math.isfinite(sp.position[1]) else None
+                v_sp = list(self._shield(s, (v_sp[0], v_sp[1], v_sp[2]), target, dt))
             accel = self.translation.acceleration_setpoint(s.velocity, tuple(v_sp), sp.acceleration, dt)
             if not s.valid_position:  # dead reckoning drifts: stay level horizontally, keep the baro-held height
                 accel = (0.0, 0.0, accel[2])
         else:
             accel = tuple(a if math.isfinite(a) else 0.0 for a in sp.acceleration)
+            if shield and self.barrier is not None:  # acceleration level: shield the velocity it leads to in tau
+                tau = self.barrier.p.response_time
+                wanted = tuple(v + a * tau for v, a in zip(s.velocity, accel, strict=True))
+                safe = self._shield(s, (wanted[0], wanted[1], wanted[2]), None, dt)
+                accel = tuple(a + (v - w) / tau for a, v, w in zip(accel, safe, wanted, strict=True))
         yaw = sp.yaw if math.isfinite(sp.yaw) else self.hold_yaw
         self.thrust, self.attitude_target = self.translation.thrust_and_attitude(accel, yaw, s.orientation)
         self.yaw_rate_ff = sp.yaw_rate if math.isfinite(sp.yaw_rate) else 0.0
+
+    def _avoiding(self, s: StateSample) -> bool:
+        """The barrier applies: armed in a guided mode (POSITION, AUTO, OFFBOARD) with a valid position, something
+        to avoid, and not in the take-off / landing zone near the ground."""
+        out, i = self.out, self.inputs
+        if not out.armed or out.mode not in (Mode.POSITION, Mode.AUTO, Mode.OFFBOARD) or not s.valid_position:
+            return False
+        if out.landed == Landed.ON_GROUND:
+            return False
+        has_obstacles = bool(i.obstacles) and i.now - i.obstacles_stamp <= OBSTACLE_TIMEOUT_S
+        if not has_obstacles and (i.fence is None or i.fence.empty):
+            return False
+        if out.landed != Landed.IN_AIR or out.nav in (Nav.TAKEOFF, Nav.LAND):
+            height = s.terrain_distance if math.isfinite(s.terrain_distance) else s.position[2]
+            return height > AVOID_MIN_HEIGHT_M
+        return True
+
+    def _shield(self, s: StateSample, v_sp: Vec, target: Vec | None, dt: float) -> Vec:
+        """v_sp through the barrier (obstacles + fence; the floor only in the air outside take-off / landing)."""
+        assert self.barrier is not None
+        i, out = self.inputs, self.out
+        obstacles = i.obstacles if i.now - i.obstacles_stamp <= OBSTACLE_TIMEOUT_S else ()
+        floor = out.landed == Landed.IN_AIR and out.nav not in (Nav.TAKEOFF, Nav.LAND)
+        before = self.barrier.state.side
+        result = self.barrier.shield(i.now, dt, s.position, s.velocity, v_sp, target, obstacles, i.fence, floor)
+        if result.detour != before:
+            out.events.append(f"detour around obstacle {result.detour_obstacle} "
+                              f"({'counter-clockwise' if result.detour > 0 else 'clockwise'})" if result.detour
+                              else "detour ended")
+        return result.velocity
 
     def attitude_control(self, dt: float) -> None:
         s, sp = self.state, self.active
