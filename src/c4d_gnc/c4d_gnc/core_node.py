@@ -8,7 +8,9 @@ into the GncCore blackboard.
 Interfaces (c4d_ros.manifest, docs/ARCHITECTURE.md):
   subscribes  <imu_topic> (perception/imu: the gyro for the rate loop), navigation/state, and the setpoints of
               guidance/setpoint (mission), guidance/pilot (bridge), guidance/offboard (offboard gateway): the mode
-              picks the one that steers (setpoint_sources); the others are ignored and counted in vehicle/status
+              picks the one that steers (setpoint_sources); the others are ignored and counted in vehicle/status;
+              perception/surroundings and geofence/active (latched) for the avoidance barrier (docs/daa.md),
+              converted to local ENU once when they (or home) arrive, never per tick
   serves      gnc/command (arm, disarm, take-off, land, hold, set mode, go-to; applied at the next tick)
   publishes   control/actuators (every tick; the only publisher), vehicle/status (latched, on change
               and at 5 Hz), gnc/executor_stats (every report_period_s), gnc/schedule (latched, once)
@@ -20,6 +22,7 @@ Bad configuration or parameter: one line on stderr, exit 2, nothing armed.
 
 from __future__ import annotations
 
+import math
 import signal
 import sys
 import time
@@ -29,8 +32,20 @@ from functools import partial
 
 from sensor_msgs.msg import Imu
 
+from c4d_common.barrier import BarrierError, BarrierParams, FenceGeometry, Obstacle
+from c4d_common.geodesy import GeoOrigin
+from c4d_common.plan import Geofence, PlanError
 from c4d_common.vehicle import SetpointSource
-from c4d_interfaces.msg import ActuatorCommand, ExecutorStats, GuidanceSetpoint, ScheduleTable, VehicleState, VehicleStatus
+from c4d_interfaces.msg import (
+    ActuatorCommand,
+    ExecutorStats,
+    GuidanceSetpoint,
+    ScheduleTable,
+    Surroundings,
+    VehicleState,
+    VehicleStatus,
+)
+from c4d_interfaces.msg import Geofence as GeofenceMsg
 from c4d_interfaces.srv import VehicleCommand
 from c4d_ros import node_runtime
 from c4d_ros.drain import Drainer
@@ -39,6 +54,7 @@ from c4d_ros.manifest import (
     CLOCK,
     CORE_COMMAND,
     EXECUTOR_STATS,
+    GEOFENCE,
     NAV_STATE,
     OFFBOARD_SETPOINT,
     P_IMU,
@@ -46,8 +62,10 @@ from c4d_ros.manifest import (
     SCHEDULE,
     SETPOINT,
     STATUS,
+    SURROUNDINGS,
 )
 from c4d_ros.params import Declaration, ParameterError, Spec
+from c4d_ros.plan_msgs import geofence_from_msg
 from c4d_ros.qos import newest_only
 from c4d_sched.executive import Clock, CyclicExecutive, MonotonicClock, grid_start_ns
 from c4d_sched.lockstep import CLOCK as SIM_CLOCK
@@ -81,6 +99,16 @@ PARAMS = {
     "lockstep_input_timeout_s": Spec(1.0, "lockstep: wall time a tick waits for a running input (gyro, state) that "
                                           "missed its step before it runs without it (logged) [s]", 0.01, 3600.0,
                                      read_only=True),
+    "avoidance": Spec(True, "obstacle and geofence barrier on the velocity setpoint in guided modes (docs/daa.md) [bool]",
+                      read_only=True),
+    "avoid_detection_range": Spec(2.0, "barrier detection range D: the potential is zero beyond this distance to an "
+                                       "obstacle's surface or the fence [m]", 0.2, 50.0, read_only=True),
+    "avoid_protection_radius": Spec(0.5, "barrier protection radius r: the potential is infinite here; the vehicle "
+                                         "stays outside it [m]", 0.05, 20.0, read_only=True),
+    "avoid_brake_decel": Spec(4.0, "deceleration the barrier's braking cap plans with (braking margin v^2/2a) [m/s^2]",
+                              0.5, 15.0, read_only=True),
+    "avoid_detour_after_s": Spec(1.0, "blocked progress with an obstacle inside D for this long starts a tangential "
+                                      "detour [s]", 0.1, 60.0, read_only=True),
 }
 LOCKSTEP_STREAMS = ("gyro", "state")
 
@@ -96,6 +124,16 @@ class CoreParams:
     tick_phase: float = 0.5
     lockstep: bool = False
     lockstep_input_timeout_s: float = 1.0
+    avoidance: bool = True
+    avoid_detection_range: float = 2.0
+    avoid_protection_radius: float = 0.5
+    avoid_brake_decel: float = 4.0
+    avoid_detour_after_s: float = 1.0
+
+    def barrier(self) -> BarrierParams:
+        """The barrier's parameters; BarrierError (one line) when they contradict each other (D <= r)."""
+        return BarrierParams(detection_range=self.avoid_detection_range, protection_radius=self.avoid_protection_radius,
+                             brake_decel=self.avoid_brake_decel, detour_after=self.avoid_detour_after_s)
 
     def load_config(self) -> CoreConfig:
         return load_core_config(self.config or None, self.airframe or None, self.phase_method or None)
@@ -112,7 +150,9 @@ class CoreNode:
         self.node, self.cfg, self.params = node, cfg, params
         self.log = node.get_logger()
         self.clock = node.get_clock()
-        self.core = GncCore(cfg.airframe, cfg.schedule.tick_us / 1e6)
+        self.core = GncCore(cfg.airframe, cfg.schedule.tick_us / 1e6, barrier=params.barrier(), avoidance=params.avoidance)
+        self.geofence: Geofence | None = None  # geofence/active as received (geodetic)
+        self.origin: tuple[float, float, float] | None = None  # home the fence was converted with
         self.status = StatusCadence()
         self.drainer = Drainer(node)
         # the 500 Hz inputs and output go serialized (c4d_gnc.wire: ~1 µs instead of ~40 µs per message)
@@ -121,6 +161,9 @@ class CoreNode:
         for source, topic in ((SetpointSource.MISSION, SETPOINT), (SetpointSource.PILOT, PILOT_SETPOINT),
                               (SetpointSource.OFFBOARD, OFFBOARD_SETPOINT)):
             self.drainer.subscription(GuidanceSetpoint, topic.name, partial(self.on_setpoint, source, topic.name), topic.qos)
+        if params.avoidance:
+            self.drainer.subscription(Surroundings, SURROUNDINGS.name, self.on_surroundings, SURROUNDINGS.qos)
+            self.drainer.subscription(GeofenceMsg, GEOFENCE.name, self.on_geofence, GEOFENCE.qos)
         self.drainer.service(VehicleCommand, CORE_COMMAND.name, self.on_command)
         self.pub_actuators = node.create_publisher(ActuatorCommand, ACTUATORS.name, ACTUATORS.qos)
         self.pub_status = node.create_publisher(VehicleStatus, STATUS.name, STATUS.qos)
@@ -202,7 +245,43 @@ class CoreNode:
         inputs.gyro, inputs.gyro_stamp = wire.gyro_from_cdr(raw)
 
     def on_state(self, raw: bytes) -> None:
-        self.core.inputs.state = wire.state_from_cdr(raw)
+        state = self.core.inputs.state = wire.state_from_cdr(raw)
+        if state.origin != self.origin and state.origin is not None:
+            self.origin = state.origin
+            self._convert_fence()
+
+    def on_surroundings(self, msg: Surroundings) -> None:
+        """Obstacles as the barrier's cylinders (local ENU), once per message; stamped with the scan's time when it
+        is plausible (movers are extrapolated from it), else with the arrival time."""
+        now = self.clock_s()
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        if not 0.0 <= now - stamp <= 0.5:
+            stamp = now
+        inputs = self.core.inputs
+        inputs.obstacles = tuple(
+            Obstacle(int(o.id), o.position.x, o.position.y, float(o.radius), o.velocity.x, o.velocity.y,
+                     float(o.height) if math.isfinite(o.height) and o.height > 0 else math.inf, stamp)
+            for o in msg.obstacles if math.isfinite(o.position.x) and math.isfinite(o.position.y) and o.radius >= 0)
+        inputs.obstacles_stamp = now
+
+    def on_geofence(self, msg: GeofenceMsg) -> None:
+        try:
+            self.geofence = geofence_from_msg(msg)
+        except PlanError as exc:
+            self.log.error(f"{GEOFENCE.name}: fence ignored, the previous one stays in force: {exc}")
+            return
+        self._convert_fence()
+
+    def _convert_fence(self) -> None:
+        """The fence in local ENU for the barrier: when a fence or a new home arrives (never per tick)."""
+        if self.geofence is None or self.origin is None:
+            return
+        fence = None if self.geofence.empty else FenceGeometry.from_geofence(self.geofence, GeoOrigin(*self.origin))
+        self.core.inputs.fence = fence
+        self.log.info("geofence in force: " + ("none" if fence is None else
+                      f"{len(fence.inclusion)}-vertex inclusion, {len(fence.exclusion_polygons)} exclusion polygons, "
+                      f"{len(fence.exclusion_circles)} circles, ceiling {fence.ceiling:g} m, floor {fence.floor:g} m, "
+                      f"max distance {fence.max_distance:g} m"))
 
     def on_setpoint(self, source: SetpointSource, topic: str, msg: GuidanceSetpoint) -> None:
         self.core.inputs.now = self.clock_s()  # arrival time: the offboard stream's proof of life
@@ -301,7 +380,8 @@ def main(argv: list[str] | None = None) -> int:
         declared = Declaration(node, PARAMS)
         cfg = CoreParams(**declared.values).load_config()
         params = CoreParams(**declared.settle(cfg.parameters()))
-    except (ParameterError, CoreConfigError) as exc:
+        params.barrier()
+    except (ParameterError, CoreConfigError, BarrierError) as exc:
         return node_runtime.fail(NAME, str(exc), node)
     try:
         return CoreNode(node, cfg, params).run()

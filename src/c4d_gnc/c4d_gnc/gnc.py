@@ -48,6 +48,7 @@ class StateSample:
     valid_position: bool = True
     valid_attitude: bool = True
     terrain_distance: float = NAN  # [m] downward range to the ground, NaN when unknown
+    origin: Vec | None = None  # (latitude [deg], longitude [deg], altitude [m]) of home, None until set
 
 
 @dataclass

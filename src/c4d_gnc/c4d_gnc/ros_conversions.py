@@ -33,6 +33,8 @@ def state_from_msg(msg: VehicleState) -> StateSample:
         valid_position=bool(msg.valid & VehicleState.VALID_POSITION_XY) and bool(msg.valid & VehicleState.VALID_POSITION_Z),
         valid_attitude=bool(msg.valid & VehicleState.VALID_ATTITUDE),
         terrain_distance=msg.terrain_distance if msg.valid & VehicleState.VALID_TERRAIN_DISTANCE else math.nan,
+        origin=(msg.origin.latitude, msg.origin.longitude, msg.origin.altitude)
+        if msg.valid & VehicleState.VALID_ORIGIN else None,
     )
 
 

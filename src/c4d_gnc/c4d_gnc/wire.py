@@ -20,6 +20,7 @@ from .gnc import Outputs, StateSample
 BASE_LINK = cdr.text("base_link")
 _XY, _Z = VehicleState.VALID_POSITION_XY, VehicleState.VALID_POSITION_Z
 _ATT, _TERRAIN = VehicleState.VALID_ATTITUDE, VehicleState.VALID_TERRAIN_DISTANCE
+_ORIGIN = VehicleState.VALID_ORIGIN
 
 
 def gyro_from_cdr(raw: bytes) -> tuple[tuple[float, float, float], float]:
@@ -31,12 +32,13 @@ def gyro_from_cdr(raw: bytes) -> tuple[tuple[float, float, float], float]:
 def state_from_cdr(raw: bytes) -> StateSample:
     """A serialized c4d_interfaces/VehicleState as the core's StateSample (as ros_conversions.state_from_msg)."""
     v = cdr.VEHICLE_STATE.unpack(raw, VehicleState)
-    # 1-2 stamp, 3-6 frame ids, 7 valid, 8 position, 11 velocity, 17 orientation x y z w, 21 angular velocity, 60 terrain
+    # 1-2 stamp, 3-6 frame ids, 7 valid, 8 position, 11 velocity, 17 orientation x y z w, 21 angular velocity, 60 terrain,
+    # 61 origin (latitude, longitude, altitude)
     valid = v[7]
     return StateSample(
         stamp=v[1] + v[2] * 1e-9, position=v[8:11], velocity=v[11:14], orientation=(v[20], v[17], v[18], v[19]),
         angular_velocity=v[21:24], valid_position=bool(valid & _XY) and bool(valid & _Z), valid_attitude=bool(valid & _ATT),
-        terrain_distance=v[60] if valid & _TERRAIN else math.nan)
+        terrain_distance=v[60] if valid & _TERRAIN else math.nan, origin=v[61:64] if valid & _ORIGIN else None)
 
 
 def actuator_cdr(out: Outputs, now: float, tick: int) -> bytes:

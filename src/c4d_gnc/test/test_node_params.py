@@ -8,6 +8,8 @@ import pytest
 
 CASES = [
     ("core_node", "rt_priority:=100", "core: error: parameter 'rt_priority': 100 is outside [0, 99]"),
+    ("core_node", "avoid_detection_range:=0.4",
+     "core: error: detection range 0.4 m must exceed the protection radius 0.5 m"),
     ("navigation_node", "odometry_rate_hz:=0.0", "navigation: error: parameter 'odometry_rate_hz': 0.0 is outside [0.01, 1000]"),
     ("perception_node", "gyro_offset:=[1.0]", "perception: error: parameter 'gyro_offset' needs 3 values"),
 ]

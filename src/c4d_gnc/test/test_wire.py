@@ -28,15 +28,18 @@ def _state(valid: int) -> VehicleState:
     s.orientation.w, s.orientation.x, s.orientation.y, s.orientation.z = 0.9, 0.1, -0.2, 0.3
     s.angular_velocity.x, s.angular_velocity.y, s.angular_velocity.z = 0.01, 0.02, -0.03
     s.terrain_distance = 4.5
+    s.origin.latitude, s.origin.longitude, s.origin.altitude = 43.5629, 1.4815, 146.0
     return s
 
 
 @pytest.mark.parametrize("valid", [0, VehicleState.VALID_ATTITUDE, VehicleState.VALID_POSITION_XY,
                                    VehicleState.VALID_POSITION_XY | VehicleState.VALID_POSITION_Z
-                                   | VehicleState.VALID_ATTITUDE | VehicleState.VALID_TERRAIN_DISTANCE])
+                                   | VehicleState.VALID_ATTITUDE | VehicleState.VALID_TERRAIN_DISTANCE,
+                                   VehicleState.VALID_ATTITUDE | VehicleState.VALID_ORIGIN])
 def test_state_from_cdr_equals_state_from_msg(valid: int) -> None:
     msg = _state(valid)
     got, want = wire.state_from_cdr(serialize_message(msg)), conv.state_from_msg(msg)
+    assert got.origin == ((43.5629, 1.4815, 146.0) if valid & VehicleState.VALID_ORIGIN else None)
     assert math.isnan(got.terrain_distance) == math.isnan(want.terrain_distance)
     if not math.isnan(want.terrain_distance):
         assert got == want
