@@ -1,9 +1,11 @@
 """Failsafe event evaluation: which monitored conditions are true right now.
 
 What: `evaluate(snapshot, policy, t)` turns a `HealthSnapshot` (the latest of everything the
-health node hears: dead and stalled nodes, GNSS health, the estimate, battery, the plan's
-geofence, the ground link, executor overruns, core stalls, the offboard stream) into the active events, each with a
-detail for people: `{Event.BATTERY_LOW: "28%"}`. The `FailsafeArbiter` (policy.py) then decides the action.
+health node hears: dead and stalled nodes, GNSS health, the estimate, battery, the fence in
+force (geofence/active: inclusion polygon, ceiling, distance, exclusion zones, and the floor while
+flying), the ground link, executor overruns, core stalls, the offboard stream, the perceived
+obstacles) into the active events, each with a detail for people: `{Event.BATTERY_LOW: "28%"}`.
+The `FailsafeArbiter` (policy.py) then decides the action.
 
 Why a pure function over a snapshot: every failsafe condition is tested without DDS
 (test/test_events.py), and the node only copies messages into the snapshot. Decisions use the
@@ -24,6 +26,7 @@ from .core_stall import CoreStallReport
 from .policy import Event, FailsafePolicy
 
 LINK_TIMEOUT_S = 3.0  # no heartbeat on the link topic for this long: link lost
+Circle = tuple[float, float, float]  # an obstacle's horizontal bounding circle: east, north, radius [m]
 
 
 @dataclass(frozen=True)
@@ -69,12 +72,19 @@ class HealthSnapshot:
     gnss: GnssReport | None = None
     estimate: Estimate | None = None
     battery_soc: float | None = None  # state of charge 0..1, NaN = unknown
-    geofence: Geofence | None = None  # of the active plan
+    geofence: Geofence | None = None  # in force (geofence/active)
     link: LinkWatch | None = None  # None: the link is not watched
     new_overruns: int = 0  # executor overruns since the previous statistics message
     stalled_nodes: tuple[str, ...] = ()  # sorted; silent but still in the ROS graph
     core_stall: CoreStallReport | None = None
     offboard: OffboardWatch | None = None  # None: the core's mode not known yet
+    flying: bool = False  # in the air, not taking off or landing: the fence's floor applies
+    obstacles: tuple[Circle, ...] | None = None  # perception/surroundings (east, north, radius); None: none heard
+
+
+def nearest_obstacle(position: Point3, obstacles: tuple[Circle, ...]) -> float:
+    """The horizontal distance [m] from `position` to the nearest obstacle surface (inf: none; 0 inside one)."""
+    return min((max(0.0, math.hypot(position[0] - x, position[1] - y) - r) for x, y, r in obstacles), default=math.inf)
 
 
 def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict[str, str]:
@@ -95,7 +105,7 @@ def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict
         elif s.battery_soc < policy.battery_low:
             active[Event.BATTERY_LOW] = f"{s.battery_soc:.0%}"
     if s.geofence is not None and s.estimate is not None and s.estimate.home is not None:
-        breach = LocalFence.from_geofence(s.geofence, s.estimate.home).breach(s.estimate.position)
+        breach = LocalFence.from_geofence(s.geofence, s.estimate.home).breach(s.estimate.position, with_floor=s.flying)
         if breach is not None:
             active[Event.GEOFENCE_BREACH] = breach.text
     if s.link is not None and (s.link.last_heard is None or t - s.link.last_heard > LINK_TIMEOUT_S):
@@ -108,4 +118,11 @@ def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict
         active[Event.CORE_STALL_REPEATED] = s.core_stall.repeated
     if s.offboard is not None and s.offboard.in_offboard and t - s.offboard.last_heard > policy.offboard_loss_timeout_s:
         active[Event.OFFBOARD_LOSS] = f"no offboard setpoint for {t - s.offboard.last_heard:.1f} s in OFFBOARD"
+    if s.obstacles and s.estimate is not None and s.estimate.position_xy_valid:
+        distance = nearest_obstacle(s.estimate.position, s.obstacles)
+        if distance < policy.obstacle_protection_radius_m:
+            active[Event.OBSTACLE_COLLISION_RISK] = f"obstacle {distance:.2f} m away (protection radius " \
+                                                    f"{policy.obstacle_protection_radius_m:g} m)"
+        elif distance < policy.obstacle_detection_range_m:
+            active[Event.OBSTACLE_NEAR] = f"obstacle {distance:.1f} m away"
     return active

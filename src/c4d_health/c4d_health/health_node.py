@@ -5,7 +5,10 @@ Monitors (10 Hz): node liveliness (each watched node's periodic topic silent lon
 2.5 s, once heard: dead if also gone from the ROS graph,
 stalled if still in it — the graph sampled once a second: liveness.py), GNSS health
 (perception/health), estimator validity (navigation/state), battery state of charge
-(sensors/battery), geofence (mission/plan against the position),
+(sensors/battery), geofence (geofence/active — the fence in force, incl. exclusion zones and the
+floor while flying — against the position), obstacles (perception/surroundings, sampled at the
+tick: obstacle_near inside the detection range, obstacle_collision_risk inside the protection
+radius),
 ground link (a heartbeat topic, when `link_topic` is set), executor overruns and core stalls
 (gnc/executor_stats: core_stall.py), the offboard stream (guidance/offboard, sampled at the
 tick, silent for `offboard_loss_timeout_s` while the core is in OFFBOARD: offboard_loss); the
@@ -32,16 +35,17 @@ from std_msgs.msg import Header
 
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.geofence import Point3
-from c4d_common.plan import Geofence
+from c4d_common.plan import Geofence, PlanError
 from c4d_common.share import share_file
 from c4d_common.vehicle import CommandResult, Landed, Mode
-from c4d_interfaces.msg import ExecutorStats, GuidanceSetpoint, MissionPlan, MissionState, VehicleState, VehicleStatus
+from c4d_interfaces.msg import ExecutorStats, GuidanceSetpoint, MissionState, Surroundings, VehicleState, VehicleStatus
+from c4d_interfaces.msg import Geofence as GeofenceMsg
 from c4d_interfaces.srv import VehicleCommand
 from c4d_ros import manifest
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.drain import LatestSampler
 from c4d_ros.params import ParameterError, Spec, declare_all
-from c4d_ros.plan_msgs import plan_from_msg
+from c4d_ros.plan_msgs import geofence_from_msg
 
 from .commands import FailsafeCommand, failsafe_command
 from .core_stall import CORE, CoreStallMonitor, CoreStallReport, StatsWindow
@@ -129,7 +133,7 @@ class HealthNode:
         self.core_stall = CoreStallMonitor(config.policy.core_stall, TICK_S, self._now())
         self.offboard_stream = LivenessMonitor((OFFBOARD_STREAM,), config.policy.offboard_loss_timeout_s, TICK_S,
                                                self._now())
-        self.armed = self.in_air = False
+        self.armed = self.in_air = self.flying = False
         self.mode: Mode | None = None  # the core's, from vehicle/status
         self.gnss: GnssReport | None = None
         self.battery_soc: float | None = None
@@ -151,6 +155,8 @@ class HealthNode:
         self.offboard = LatestSampler(side_node, GuidanceSetpoint, manifest.OFFBOARD_SETPOINT.name,
                                       manifest.OFFBOARD_SETPOINT.qos)
         self.offboard_seen: object = None
+        # 10-20 Hz: only the latest matters at the 10 Hz tick
+        self.surroundings = LatestSampler(side_node, Surroundings, manifest.SURROUNDINGS.name, manifest.SURROUNDINGS.qos)
         self._subscribe()
         node.create_timer(TICK_S, self._tick)
 
@@ -164,7 +170,7 @@ class HealthNode:
                 (manifest.STATUS, VehicleStatus, self._on_status),
                 (manifest.P_HEALTH, DiagnosticArray, self._on_perception_health),
                 (manifest.BATTERY, BatteryState, self._on_battery),
-                (manifest.MISSION_PLAN, MissionPlan, self._on_plan),
+                (manifest.GEOFENCE, GeofenceMsg, self._on_fence),
                 (manifest.EXECUTOR_STATS, ExecutorStats, self._on_stats),
                 (manifest.NAV_ODOMETRY, Odometry, None),
                 (manifest.MISSION_STATE, MissionState, None)):
@@ -187,6 +193,7 @@ class HealthNode:
 
     def _on_status(self, msg: VehicleStatus) -> None:
         self.armed, self.in_air = bool(msg.armed), msg.landed_state in IN_AIR
+        self.flying = self.armed and msg.landed_state == Landed.IN_AIR
         mode = Mode(msg.flight_mode) if msg.flight_mode in Mode._value2member_map_ else Mode.UNKNOWN
         if mode == Mode.OFFBOARD and self.mode not in (None, Mode.OFFBOARD) and self.arbiter.clear(Event.OFFBOARD_LOSS):
             # the operator switched back to OFFBOARD (the core accepts it only with a live stream): taken over
@@ -201,8 +208,13 @@ class HealthNode:
     def _on_battery(self, msg: BatteryState) -> None:
         self.battery_soc = float(msg.percentage)
 
-    def _on_plan(self, msg: MissionPlan) -> None:
-        self.geofence = plan_from_msg(msg).geofence
+    def _on_fence(self, msg: GeofenceMsg) -> None:
+        try:
+            fence = geofence_from_msg(msg)
+        except PlanError as exc:  # the mission node validates what it publishes: never expected
+            self.node.get_logger().error(f"{manifest.GEOFENCE.name} unusable, keeping the previous fence: {exc}")
+            return
+        self.geofence = None if fence.empty else fence
 
     def _on_stats(self, msg: ExecutorStats) -> None:
         total = int(msg.overruns_total)
@@ -228,9 +240,12 @@ class HealthNode:
     def snapshot(self, t: float) -> HealthSnapshot:
         state = self.state.latest()
         link = LinkWatch(self.config.link_topic, self.link_heard) if self.config.link_topic else None
+        around = self.surroundings.latest()
+        obstacles = tuple((o.position.x, o.position.y, float(o.radius)) for o in around.obstacles) \
+            if around is not None else None
         return HealthSnapshot(self.dead, self.gnss, estimate_of(state) if state is not None else None, self.battery_soc,
                               self.geofence, link, self.new_overruns, self.stalled, self.core_stall_report,
-                              self._offboard_watch(t))
+                              self._offboard_watch(t), self.flying, obstacles)
 
     def _tick(self) -> None:
         t = self._now()

@@ -43,6 +43,8 @@ class Event(StrEnum):
     CORE_STALL = "core_stall"  # the GNC core's executive stalled (a long tick, many skipped ticks, or silent stats)
     CORE_STALL_REPEATED = "core_stall_repeated"  # core stalls again and again within a window
     OFFBOARD_LOSS = "offboard_loss"  # in OFFBOARD, guidance/offboard silent for offboard_loss_timeout_s
+    OBSTACLE_NEAR = "obstacle_near"  # a perceived obstacle inside the detection range (D3.3 §6.7: 2 m)
+    OBSTACLE_COLLISION_RISK = "obstacle_collision_risk"  # inside the protection radius (0.5 m)
 
 
 EVENTS = tuple(e.value for e in Event)
@@ -93,6 +95,8 @@ class FailsafePolicy:
     node_timeout_s: float = 1.0
     core_stall: CoreStallLimits = CoreStallLimits()
     offboard_loss_timeout_s: float = 0.5  # guidance/offboard silent this long in OFFBOARD: offboard_loss [s]
+    obstacle_detection_range_m: float = 2.0  # an obstacle's surface nearer than this: obstacle_near [m]
+    obstacle_protection_radius_m: float = 0.5  # nearer than this: obstacle_collision_risk [m]
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> FailsafePolicy:
@@ -109,7 +113,8 @@ class FailsafePolicy:
         if not isinstance(doc, dict) or not isinstance(doc.get("events"), dict):
             raise PolicyError("failsafe policy: needs an 'events' mapping")
         unknown = set(doc) - {"events", "battery_low_threshold", "battery_critical_threshold", "node_timeout_s",
-                              "offboard_loss_timeout_s", *CORE_STALL_KEYS}
+                              "offboard_loss_timeout_s", "obstacle_detection_range_m", "obstacle_protection_radius_m",
+                              *CORE_STALL_KEYS}
         if unknown:
             raise PolicyError(f"failsafe policy: unknown field(s) {', '.join(sorted(unknown))}")
         rules = {}
@@ -128,7 +133,11 @@ class FailsafePolicy:
         offboard_timeout = doc.get("offboard_loss_timeout_s", 0.5)
         if not _number(offboard_timeout) or offboard_timeout <= 0:
             raise PolicyError("failsafe policy: offboard_loss_timeout_s must be a number > 0")
-        return cls(rules, float(low), float(critical), float(timeout), core_stall_limits(doc), float(offboard_timeout))
+        detection, protection = doc.get("obstacle_detection_range_m", 2.0), doc.get("obstacle_protection_radius_m", 0.5)
+        if not (_number(detection) and _number(protection) and 0 < protection < detection):
+            raise PolicyError("failsafe policy: need 0 < obstacle_protection_radius_m < obstacle_detection_range_m")
+        return cls(rules, float(low), float(critical), float(timeout), core_stall_limits(doc), float(offboard_timeout),
+                   float(detection), float(protection))
 
 
 def _number(value: object) -> bool:

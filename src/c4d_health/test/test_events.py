@@ -143,5 +143,34 @@ def test_events_come_in_event_order():
     everything = HealthSnapshot(("sim",), GnssReport(False, "lost"), replace(at(99.0, 0.0), attitude_valid=False), 0.1,
                                 Geofence(max_distance=15.0), LinkWatch("link", None), 1, ("core",),
                                 CoreStallReport("worst tick 30 ms, 14 skipped ticks", "3 stalls within 10 s"),
-                                OffboardWatch(True, T - 1.0))
-    assert list(evaluate(everything, POLICY, T)) == [e for e in Event if e != Event.BATTERY_LOW]
+                                OffboardWatch(True, T - 1.0), True, ((99.3, 0.0, 0.0),))
+    assert list(evaluate(everything, POLICY, T)) == [e for e in Event if e not in (Event.BATTERY_LOW, Event.OBSTACLE_NEAR)]
+
+
+def test_exclusion_zones_and_the_floor_of_the_fence_in_force():
+    """geofence/active's exclusion polygon / circle is a breach inside it; the floor only while flying
+    (take-off and landing pass through it)."""
+    wall = tuple(HOME.to_geodetic(e, n, 0.0)[:2] for e, n in ((20, -10), (25, -10), (25, 10), (20, 10)))
+    circle = (*HOME.to_geodetic(0.0, 30.0, 0.0)[:2], 4.0)
+    fence = Geofence(exclusion_polygons=(wall,), exclusion_circles=(circle,), min_altitude=3.0)
+    assert events(geofence=fence, estimate=at(22.0, 0.0)) == {"geofence_breach": "inside exclusion polygon 0"}
+    assert events(geofence=fence, estimate=at(19.0, 0.0)) == {}
+    assert events(geofence=fence, estimate=at(1.0, 28.0))["geofence_breach"].startswith("inside exclusion circle 0")
+    assert events(geofence=fence, estimate=at(0.0, 0.0, 2.0)) == {}  # not flying: taking off or landing
+    assert events(geofence=fence, estimate=at(0.0, 0.0, 2.0), flying=True) == {
+        "geofence_breach": "2.0 m below the 3 m floor"}
+
+
+def test_obstacle_near_and_collision_risk_from_the_perceived_obstacles():
+    """Distance to the obstacle's surface (its bounding circle) from the estimated position: inside
+    2 m obstacle_near (warn), inside 0.5 m obstacle_collision_risk (hold, then land)."""
+    post = (5.0, 0.0, 1.0)  # surface at 4 m east
+    assert events(obstacles=(post,), estimate=at(1.0, 0.0)) == {}  # 3 m away
+    assert events(obstacles=(post,), estimate=at(2.5, 0.0)) == {"obstacle_near": "obstacle 1.5 m away"}
+    assert events(obstacles=(post, (0.0, -1.0, 0.2)), estimate=at(3.7, 0.0)) == {
+        "obstacle_collision_risk": "obstacle 0.30 m away (protection radius 0.5 m)"}
+    assert events(obstacles=(), estimate=at(3.7, 0.0)) == {} and events(obstacles=None, estimate=at(3.7, 0.0)) == {}
+    no_fix = replace(at(3.7, 0.0), position_xy_valid=False)  # the estimator's own event covers it
+    assert "obstacle_collision_risk" not in events(obstacles=(post,), estimate=no_fix)
+    wide = replace(POLICY, obstacle_detection_range_m=5.0)
+    assert list(evaluate(replace(HEALTHY, obstacles=(post,), estimate=at(1.0, 0.0)), wide, T)) == ["obstacle_near"]

@@ -142,3 +142,17 @@ def test_core_stall_limits_default_and_partial():
     limits = FailsafePolicy.from_dict({"events": {}, "core_stall_ms": 50, "core_stall_repeat_count": 5}).core_stall
     assert (limits.worst_tick_ms, limits.repeat_count, limits.skipped_ticks) == (50.0, 5, 25)
     assert isinstance(limits.worst_tick_ms, float)
+
+
+def test_obstacle_rules_and_thresholds():
+    assert (POLICY.obstacle_detection_range_m, POLICY.obstacle_protection_radius_m) == (2.0, 0.5)
+    assert POLICY.rules["obstacle_near"] == Rule(Action.WARN, 0.0, True)
+    assert POLICY.rules["obstacle_collision_risk"] == Rule(Action.HOLD, 0.0, True, Action.LAND, 5.0)
+    arbiter = FailsafeArbiter(POLICY)
+    assert arbiter.update(0.0, {"obstacle_collision_risk": "0.3 m"}, in_air=True) == Action.HOLD
+    assert arbiter.update(1.0, {}, in_air=True) == Action.HOLD  # the vehicle stopped: still lands
+    assert arbiter.update(5.0, {}, in_air=True) == Action.LAND
+    for bad in ({"obstacle_protection_radius_m": 2.0}, {"obstacle_detection_range_m": 0.4},
+                {"obstacle_protection_radius_m": 0}, {"obstacle_detection_range_m": True}):
+        with pytest.raises(PolicyError, match="0 < obstacle_protection_radius_m < obstacle_detection_range_m"):
+            FailsafePolicy.from_dict({"events": {}, **bad})

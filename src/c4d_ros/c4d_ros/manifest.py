@@ -133,7 +133,7 @@ SCHEDULE = Topic("gnc/schedule", "c4d_interfaces/msg/ScheduleTable", L, "once", 
 MISSION_STATE = Topic("mission/state", "c4d_interfaces/msg/MissionState", L, "on change + 5 Hz", ("mission",),
                       ("payload", "health", "bridge"), "health: mission's liveness")
 MISSION_PLAN = Topic("mission/plan", "c4d_interfaces/msg/MissionPlan", L, "on change", ("mission",),
-                     ("payload", "health", "bridge", "offboard"), "offboard: the geofence external targets are clamped to")
+                     ("payload", "bridge", "offboard"), "the accepted plan (its fence is in geofence/active)")
 CAPTURES = Topic("payload/captures", "c4d_interfaces/msg/CaptureEvent", CMD, "per capture", ("payload",), ("bridge",))
 GIMBAL = Topic("payload/gimbal", "geometry_msgs/msg/Vector3Stamped", S, "50 Hz while a mission runs", ("payload",), (),
                "roll, pitch, yaw [rad], body frame")
