@@ -3,7 +3,7 @@
 Subscribes the public inputs offboard/trajectory_setpoint (GuidanceSetpoint, any level),
 offboard/pose (PoseStamped → POSITION + yaw) and offboard/twist (TwistStamped → VELOCITY + yaw
 rate, `map` or `base_link`), checks each with gateway.Gateway (level, NaN/inf, frame, stamp,
-rate limit, the active plan's geofence) and republishes what passes on guidance/offboard, the
+rate limit, the fence in force on geofence/active) and republishes what passes on guidance/offboard, the
 core's OFFBOARD input. offboard/status (DiagnosticStatus, latched) reports the stream and every
 counter at 1 Hz and on change. docs/offboard.md is the user's page.
 
@@ -30,12 +30,13 @@ from c4d_common.geodesy import GeoOrigin
 from c4d_common.geofence import LocalFence
 from c4d_common.plan import Geofence, PlanError
 from c4d_common.quat import yaw_of
-from c4d_interfaces.msg import GuidanceSetpoint, MissionPlan, VehicleState
+from c4d_interfaces.msg import Geofence as GeofenceMsg
+from c4d_interfaces.msg import GuidanceSetpoint, VehicleState
 from c4d_ros import manifest as m
 from c4d_ros.component import ComponentError, Host
 from c4d_ros.drain import LatestSampler
 from c4d_ros.params import ParameterError, Spec, declare_all
-from c4d_ros.plan_msgs import plan_from_msg
+from c4d_ros.plan_msgs import geofence_from_msg
 
 from . import inputs
 from .action_servers import ActionServers
@@ -86,7 +87,7 @@ class OffboardNode:
         node.create_subscription(PoseStamped, m.OFFBOARD_POSE.name, self._on_pose, m.OFFBOARD_POSE.qos, callback_group=g)
         node.create_subscription(TwistStamped, m.OFFBOARD_TWIST.name, self._on_twist, m.OFFBOARD_TWIST.qos,
                                  callback_group=g)
-        node.create_subscription(MissionPlan, m.MISSION_PLAN.name, self._on_plan, m.MISSION_PLAN.qos, callback_group=g)
+        node.create_subscription(GeofenceMsg, m.GEOFENCE.name, self._on_fence, m.GEOFENCE.qos, callback_group=g)
         self.state = LatestSampler(side_node, VehicleState, m.NAV_STATE.name, m.NAV_STATE.qos)
         node.create_timer(WATCH_PERIOD_S, self._watch, callback_group=g)
         node.add_on_set_parameters_callback(self._on_parameters)
@@ -138,11 +139,11 @@ class OffboardNode:
         self._publish_status()
 
     # --- context: fence, heading ---------------------------------------------------------------
-    def _on_plan(self, msg: MissionPlan) -> None:
+    def _on_fence(self, msg: GeofenceMsg) -> None:
         try:
-            fence = plan_from_msg(msg).geofence
+            fence: Geofence | None = geofence_from_msg(msg)
         except PlanError as exc:
-            self.log.error(f"mission/plan unusable, its geofence not applied: {exc}")
+            self.log.error(f"{m.GEOFENCE.name} unusable, not applied: {exc}")
             fence = None
         self.geofence = fence
         self._update_fence()
@@ -161,8 +162,7 @@ class OffboardNode:
 
     def _update_fence(self) -> None:
         fence = self.geofence
-        active = fence is not None and self.origin is not None and bool(
-            fence.polygon or fence.max_altitude > 0 or fence.max_distance > 0)
+        active = fence is not None and self.origin is not None and not fence.empty
         local = LocalFence.from_geofence(fence, self.origin) if active else None  # type: ignore[arg-type]
         with self.lock:
             self.gateway.fence = local
