@@ -78,6 +78,7 @@ STREAM_ENCODERS = {
     "LOCAL_POSITION_NED": enc.local_position_ned, "GPS_RAW_INT": enc.gps_raw_int, "VFR_HUD": lambda s, now: enc.vfr_hud(s),
     "HOME_POSITION": enc.home_position, "EXTENDED_SYS_STATE": lambda s, now: enc.extended_sys_state(s),
     "MISSION_CURRENT": lambda s, now: enc.mission_current(s), "POSITION_TARGET_LOCAL_NED": enc.position_target,
+    "FENCE_STATUS": enc.fence_status, "OBSTACLE_DISTANCE": enc.obstacle_distances,
 }
 
 

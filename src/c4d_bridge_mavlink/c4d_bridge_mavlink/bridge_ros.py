@@ -15,11 +15,12 @@ from dataclasses import dataclass
 from c4d_common.geodesy import GeoOrigin
 from c4d_common.mavlink_items import ItemProblem, MavlinkItemError, item_from_mavlink, item_to_mavlink
 from c4d_common.plan import Geofence, Plan, PlanError
-from c4d_common.vehicle import CommandResult, FailsafeAction, Level, MissionAction, MissionStatus, UploadRefusal
+from c4d_common.vehicle import CommandResult, FailsafeAction, Landed, Level, MissionAction, MissionStatus, UploadRefusal
 from c4d_ros import manifest as topics
 from c4d_ros.drain import LatestSampler
 
 from .encoders import Snapshot
+from .fence import FenceItemsError, geofence_from_items, items_from_geofence
 from .health_report import FailsafeAnnouncer
 from .manual import PilotSetpoint
 from .mission_protocol import FENCE, MISSION, WireItem
@@ -37,6 +38,7 @@ ITEM_RESULT = {ItemProblem.FRAME: M.MAV_MISSION_UNSUPPORTED_FRAME, ItemProblem.C
                ItemProblem.VALUE: M.MAV_MISSION_INVALID}  # MISSION_ACK type for an item the plan cannot take
 # MISSION_ACK type for a plan the mission node refused: ERROR ("not accepting mission commands right now")
 # when the same upload may pass later (no home / battery state yet), DENIED while a plan runs.
+FENCE_WATCH_S = 0.1  # [s] the position is judged against the fence this often (FENCE_STATUS's breach count)
 UPLOAD_REFUSAL_RESULT = {UploadRefusal.NO_HOME: M.MAV_MISSION_ERROR, UploadRefusal.BATTERY_UNKNOWN: M.MAV_MISSION_ERROR,
                          UploadRefusal.MISSION_ACTIVE: M.MAV_MISSION_DENIED, UploadRefusal.INVALID: M.MAV_MISSION_INVALID}
 
@@ -95,21 +97,25 @@ class RosSide:
             GuidanceSetpoint,
             MissionPlan,
             MissionState,
+            Surroundings,
             VehicleState,
             VehicleStatus,
         )
-        from c4d_interfaces.srv import MissionControl, UploadMission, VehicleCommand
+        from c4d_interfaces.msg import Geofence as GeofenceMsg
+        from c4d_interfaces.srv import MissionControl, SetGeofence, UploadMission, VehicleCommand
 
         self.node = node
         self.snapshot = Snapshot(boot_s=time.monotonic())
         side = rclpy.create_node(topics.side_node_name(node.get_name()))
         self.state = LatestSampler(side, VehicleState, topics.NAV_STATE.name, topics.NAV_STATE.qos)
+        self.surroundings = LatestSampler(side, Surroundings, topics.SURROUNDINGS.name, topics.SURROUNDINGS.qos)
+        self.surroundings_seen: object = None
         for msg_type, topic, callback in (
                 (VehicleStatus, topics.STATUS, self._on_status), (BatteryState, topics.BATTERY, self._on_battery),
                 (NavSatFix, topics.P_GPS, self._on_gps), (MissionState, topics.MISSION_STATE, self._on_mission),
                 (MissionPlan, topics.MISSION_PLAN, self._on_plan), (DiagnosticStatus, topics.HEALTH_SUMMARY, self._on_health),
                 (CaptureEvent, topics.CAPTURES, self._on_capture), (ExecutorStats, topics.EXECUTOR_STATS, self._on_stats),
-                (DiagnosticArray, topics.P_HEALTH, self._on_sensors)):
+                (DiagnosticArray, topics.P_HEALTH, self._on_sensors), (GeofenceMsg, topics.GEOFENCE, self._on_fence)):
             node.create_subscription(msg_type, topic.name, callback, topic.qos)
         self.pub_heartbeat = node.create_publisher(Header, topics.GCS_HEARTBEAT.name, topics.GCS_HEARTBEAT.qos)
         self.pub_pilot = node.create_publisher(GuidanceSetpoint, topics.PILOT_SETPOINT.name, topics.PILOT_SETPOINT.qos)
@@ -121,6 +127,8 @@ class RosSide:
         self.vehicle = node.create_client(VehicleCommand, topics.VEHICLE_COMMAND.name)
         self.upload = node.create_client(UploadMission, topics.MISSION_UPLOAD.name)
         self.control = node.create_client(MissionControl, topics.MISSION_CONTROL.name)
+        self.set_fence = node.create_client(SetGeofence, topics.SET_GEOFENCE.name)
+        self.SetGeofence = SetGeofence
         self.param_clients: dict[str, object] = {}
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(node)
@@ -128,7 +136,9 @@ class RosSide:
         self.VehicleCommand, self.UploadMission, self.MissionControl = VehicleCommand, UploadMission, MissionControl
         self.last = Reported()
         self.failsafes = FailsafeAnnouncer()
-        self.fence: tuple[tuple[float, float], ...] = ()
+        self.active_fence = Geofence()  # geofence/active: the fence in force (downloads, FENCE_STATUS)
+        self.fence_uploaded = False  # a GCS set the fence: MAVLink plans fly under it (they bring none)
+        self.fence_checked = -math.inf
         self.plan_msg = None
         self.pending_params: list[tuple[ParamSpec, float]] = []
         self.router = self.missions = self.params = None
@@ -162,8 +172,18 @@ class RosSide:
                 home = (s.origin.latitude, s.origin.longitude, s.origin.altitude)
                 if snap.home != home:
                     snap.home = home
+                    snap.fence.set_fence(self.active_fence, GeoOrigin(*home))
                     if self.plan_msg is not None:
                         self._on_plan(self.plan_msg)  # local items can now become global
+        around = self.surroundings.latest()
+        if around is not None and around is not self.surroundings_seen:
+            self.surroundings_seen = around
+            self.snapshot.obstacles = tuple((o.position.x, o.position.y, float(o.radius)) for o in around.obstacles)
+            self.snapshot.obstacles_t = now
+        if now - self.fence_checked >= FENCE_WATCH_S:
+            self.fence_checked = now
+            snap = self.snapshot
+            snap.fence.update(snap.position, snap.armed and snap.landed_state == Landed.IN_AIR, now)
         if self.pending_params:
             for spec, value in list(self.pending_params):
                 if self._param_client(spec.node).service_is_ready():
@@ -236,9 +256,20 @@ class RosSide:
             self.node.get_logger().warning(f"active plan not downloadable yet: {exc}")
             return
         self.missions.stored[MISSION] = items
-        self.missions.stored[FENCE] = [WireItem(M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, M.MAV_FRAME_GLOBAL_INT,
-                                                (len(plan.geofence.polygon), 0.0, 0.0, 0.0, lat, lon, 0.0))
-                                       for lat, lon in plan.geofence.polygon]
+
+    def _on_fence(self, msg) -> None:
+        """geofence/active: what a FENCE download returns and what FENCE_STATUS judges."""
+        from c4d_ros.plan_msgs import geofence_from_msg
+
+        try:
+            fence = geofence_from_msg(msg)
+        except PlanError as exc:  # the mission node validates what it publishes: never expected
+            self.node.get_logger().error(f"{topics.GEOFENCE.name} unusable: {exc}")
+            return
+        self.active_fence = fence
+        if self.missions is not None:
+            self.missions.stored[FENCE] = items_from_geofence(fence)
+        self.snapshot.fence.set_fence(fence, GeoOrigin(*self.snapshot.home) if self.snapshot.home else None)
 
     def _on_health(self, msg) -> None:
         values = {kv.key: kv.value for kv in msg.values}
@@ -333,16 +364,44 @@ class RosSide:
                    lambda r: ack(M.MAV_RESULT_TEMPORARILY_REJECTED, "mission node not reachable") if r is None
                    else ack(r.result, r.message))
 
+    def _param_fence(self) -> Geofence:
+        p = self.params
+        return Geofence((), p.get("GF_MAX_VER_DIST"), p.get("GF_MAX_HOR_DIST"))
+
+    def upload_fence(self, items: list[WireItem]) -> None:
+        """A complete FENCE upload: the fence (items + GF_MAX_VER_DIST / GF_MAX_HOR_DIST) replaces the
+        one in force at once through geofence/set (in flight too); the mission node's verdict is the
+        MISSION_ACK, a refusal's reason a STATUSTEXT (fence.py for the items)."""
+        finish = self.missions.finish_upload
+        limits = self._param_fence()
+        try:
+            fence = geofence_from_items(items, limits.max_altitude, limits.max_distance)
+        except FenceItemsError as exc:
+            self.statustext(M.MAV_SEVERITY_WARNING, f"fence rejected: {exc}")
+            return finish(exc.result)
+
+        def verdict(reply) -> None:
+            if reply is None:
+                self.statustext(M.MAV_SEVERITY_WARNING, "fence rejected: mission node not reachable")
+                return finish(M.MAV_MISSION_ERROR)
+            if reply.result != CommandResult.ACCEPTED:
+                self.statustext(M.MAV_SEVERITY_WARNING, f"fence rejected: {reply.message}")
+                return finish(M.MAV_MISSION_DENIED)
+            self.fence_uploaded = True
+            if ";" in reply.message:  # a leg the new fence blocks was stopped (mission paused)
+                self.statustext(M.MAV_SEVERITY_WARNING, reply.message.split(";", 1)[1].strip())
+            finish(M.MAV_MISSION_ACCEPTED)
+
+        from c4d_ros.plan_msgs import geofence_to_msg
+
+        self._call(self.set_fence, self.SetGeofence.Request(fence=geofence_to_msg(fence)), verdict)
+
     def upload_mission(self, mission_type: int, items: list[WireItem]) -> None:
-        """Complete upload from a GCS: FENCE items become the polygon of the next plans; MISSION
+        """Complete upload from a GCS: FENCE items replace the fence in force (upload_fence); MISSION
         items become a plan validated by the mission node, whose verdict is the MISSION_ACK."""
         finish = self.missions.finish_upload
         if mission_type == FENCE:
-            if items and (len(items) < 3 or any(i.command != M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION for i in items)):
-                self.statustext(M.MAV_SEVERITY_WARNING, "fence: one inclusion polygon of >= 3 vertices supported")
-                return finish(M.MAV_MISSION_UNSUPPORTED)
-            self.fence = tuple((i.params[4], i.params[5]) for i in items)
-            return finish(M.MAV_MISSION_ACCEPTED)
+            return self.upload_fence(items)
         if not items:
             if self.snapshot.mission_state == M.MISSION_STATE_ACTIVE:
                 return finish(M.MAV_MISSION_DENIED)
@@ -356,7 +415,8 @@ class RosSide:
             self.statustext(M.MAV_SEVERITY_WARNING, str(exc))
             return finish(ITEM_RESULT[exc.problem])
         p = self.params
-        plan = Plan(plan_items, Geofence(self.fence, p.get("GF_MAX_VER_DIST"), p.get("GF_MAX_HOR_DIST")), "mavlink",
+        # after a fence upload the plan brings no fence: it flies under the uploaded one (mission fence.py)
+        plan = Plan(plan_items, Geofence() if self.fence_uploaded else self._param_fence(), "mavlink",
                     p.get("MPC_XY_CRUISE"), p.get("RTL_RETURN_ALT"))
         from c4d_ros.plan_msgs import plan_to_msg
 
@@ -376,8 +436,15 @@ class RosSide:
             if self.snapshot.mission_state == M.MISSION_STATE_ACTIVE:
                 return M.MAV_MISSION_DENIED
             self.mission_control({"action": MissionAction.CLEAR}, lambda r, reason="": None)
-        if mission_type in (FENCE, M.MAV_MISSION_TYPE_ALL):
-            self.fence = ()
+        if mission_type in (FENCE, M.MAV_MISSION_TYPE_ALL):  # the fence in force: the GF_* limits alone
+            def done(reply) -> None:
+                if reply is None or reply.result != CommandResult.ACCEPTED:
+                    self.statustext(M.MAV_SEVERITY_WARNING, "fence not cleared: " +
+                                    ("mission node not reachable" if reply is None else reply.message))
+            from c4d_ros.plan_msgs import geofence_to_msg
+
+            self.fence_uploaded = True
+            self._call(self.set_fence, self.SetGeofence.Request(fence=geofence_to_msg(self._param_fence())), done)
         return M.MAV_MISSION_ACCEPTED
 
     def set_current_item(self, seq: int) -> bool:

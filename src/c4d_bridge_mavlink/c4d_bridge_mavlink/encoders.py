@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from c4d_common import quat
 from c4d_common.vehicle import FailsafeAction, Landed, Mode, Nav
 
+from .fence import FenceWatch, obstacle_distance, sector_distances
 from .frames import attitude_to_ned, compass_heading_deg, enu_to_ned, flu_to_frd, px4_custom_mode
 from .health_report import VehicleHealth, sensor_bits
 from .offboard import Target, position_target_local_ned
@@ -27,6 +28,7 @@ CAPABILITIES = (M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | M.MAV_PROTOCOL_CAPABILIT
                 | M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE)
 VERSION = (0 << 24) | (1 << 16) | (0 << 8) | 255  # 0.1.0 release (major, minor, patch, FIRMWARE_VERSION_TYPE)
 OFFBOARD_TARGET_FRESH_S = 0.5  # [s] the core's offboard stream timeout: an older target is not followed
+OBSTACLES_FRESH_S = 1.0  # [s] perception/surroundings older than this: no OBSTACLE_DISTANCE (scans stopped)
 LANDED = {Landed.UNDEFINED: M.MAV_LANDED_STATE_UNDEFINED, Landed.ON_GROUND: M.MAV_LANDED_STATE_ON_GROUND,
           Landed.IN_AIR: M.MAV_LANDED_STATE_IN_AIR, Landed.TAKEOFF: M.MAV_LANDED_STATE_TAKEOFF,
           Landed.LANDING: M.MAV_LANDED_STATE_LANDING}
@@ -66,6 +68,9 @@ class Snapshot:
     comm_errors: int = 0
     offboard_target: Target | None = None  # guidance/offboard, the stream the core follows in OFFBOARD
     offboard_target_t: float = -math.inf  # monotonic time it was heard
+    fence: FenceWatch = field(default_factory=FenceWatch)  # the fence in force vs the position (FENCE_STATUS)
+    obstacles: tuple[tuple[float, float, float], ...] | None = None  # perceived: east, north, radius [m]
+    obstacles_t: float = -math.inf  # monotonic time they were heard
     extra: dict = field(default_factory=dict)
 
 
@@ -187,6 +192,20 @@ def position_target(s: Snapshot, now: float) -> M.MAVLink_position_target_local_
     if s.flight_mode != Mode.OFFBOARD or s.offboard_target is None or now - s.offboard_target_t > OFFBOARD_TARGET_FRESH_S:
         return None
     return position_target_local_ned(s.offboard_target, time_boot_ms(s, now))
+
+
+def fence_status(s: Snapshot, now: float) -> M.MAVLink_fence_status_message | None:
+    """FENCE_STATUS while a fence is in force (geofence/active), None (nothing sent) otherwise."""
+    return s.fence.message(s.boot_s)
+
+
+def obstacle_distances(s: Snapshot, now: float) -> M.MAVLink_obstacle_distance_message | None:
+    """OBSTACLE_DISTANCE from perception/surroundings relative to the heading (fence.sector_distances);
+    None without a fresh scan's obstacles, a position or an attitude."""
+    if s.obstacles is None or now - s.obstacles_t > OBSTACLES_FRESH_S or not s.valid_position or s.orientation is None:
+        return None
+    distances = sector_distances((s.position[0], s.position[1]), quat.yaw_of(s.orientation), s.obstacles)
+    return obstacle_distance(int(now * 1e6), distances)
 
 
 def extended_sys_state(s: Snapshot) -> M.MAVLink_extended_sys_state_message:
