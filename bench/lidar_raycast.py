@@ -38,15 +38,14 @@ import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tools"))
+sys.path.insert(0, str(ROOT / "bench"))
 sys.path.insert(0, str(ROOT / "test" / "support"))
-import ros_domain  # noqa: E402
+from loop_latency_cpu import NODES, measure_window, private_ros, take_off_and_hold  # noqa: E402
 from stall_probe import StallProbe  # noqa: E402
 
 from c4d_sim.lidar import Lidar, LidarConfig  # noqa: E402
 from c4d_sim.world import Box, Cylinder, Mover, World  # noqa: E402
 
-NODES = [("c4d_sim", "sim"), ("c4d_gnc", "perception"), ("c4d_gnc", "navigation"), ("c4d_gnc", "core")]
-CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 STALL_MS = 1.0
 
 
@@ -112,11 +111,6 @@ def in_process(scans: int) -> list[tuple[int, int, float, float, float, float]]:
     return rows
 
 
-def cpu_seconds(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
-
-
 def flight(node, executor, world_file: Path | None, beams: int, rate: float, seconds: float) -> dict:
     """One graph: take off, hover `seconds`, the figures of that window."""
     from diagnostic_msgs.msg import DiagnosticStatus
@@ -150,32 +144,13 @@ def flight(node, executor, world_file: Path | None, beams: int, rate: float, sec
     client = node.create_client(VehicleCommand, "gnc/command")
     probe = StallProbe()
     try:
-        client.wait_for_service(timeout_sec=30)
-        deadline = time.monotonic() + 40
-        while time.monotonic() < deadline:  # retry until the estimator is ready to arm
-            future = client.call_async(VehicleCommand.Request(command=VehicleCommand.Request.CMD_TAKEOFF, altitude=3.0))
-            while not future.done():
-                executor.spin_once(timeout_sec=0.05)
-            if future.result().result == 0:
-                break
-            end = time.monotonic() + 1.0
-            while time.monotonic() < end:
-                executor.spin_once(timeout_sec=0.05)
-        while not (status and status[-1].nav_state == VehicleStatus.NAV_HOLD):
-            executor.spin_once(timeout_sec=0.05)
+        take_off_and_hold(executor, client, status)
         link_start = len(link)
         while len(link) == link_start:  # a fresh sim report at the window's start
             executor.spin_once(timeout_sec=0.05)
         first = {kv.key: float(kv.value) for kv in link[-1].values}
-        cpu0 = {n: cpu_seconds(p.pid) for n, p in procs.items()}
-        t0 = time.monotonic()
-        recording[0] = True
-        while time.monotonic() - t0 < seconds:
-            executor.spin_once(timeout_sec=0.05)
-        recording[0] = False
-        wall = time.monotonic() - t0
+        cpu, t0, wall = measure_window(executor, procs, seconds, recording)
         last = {kv.key: float(kv.value) for kv in link[-1].values}
-        cpu = {n: 100 * (cpu_seconds(p.pid) - cpu0[n]) / wall for n, p in procs.items()}
         t_end = time.monotonic()
     finally:
         stalls = probe.stop()
@@ -218,16 +193,9 @@ def main() -> None:
     print("   (task = scan + LaserScan message + serialisation: what the sim's scan task adds to its tick)")
     if args.no_graph:
         return
-    lease = ros_domain.acquire()
-    os.environ["ROS_DOMAIN_ID"] = str(lease.domain_id)
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    lease, node, executor = private_ros("lidar_bench")
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
 
-    rclpy.init()
-    node = rclpy.create_node("lidar_bench")
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
     runs: dict[str, list[dict]] = {"lidar off": [], "lidar on": []}
     with tempfile.TemporaryDirectory() as tmp:
         world_file = Path(tmp) / "bench_world.yaml"

@@ -48,6 +48,56 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
 
 
+def private_ros(name: str):
+    """(domain lease, node, executor) on a private ROS_DOMAIN_ID (tools/ros_domain), loopback discovery;
+    the graph's processes started afterwards inherit the domain. Keep the lease while the graph runs."""
+    lease = ros_domain.acquire()
+    os.environ["ROS_DOMAIN_ID"] = str(lease.domain_id)
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    rclpy.init()
+    node = rclpy.create_node(name)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    return lease, node, executor
+
+
+def measure_window(executor, procs: dict, seconds: float, recording: list[bool]) -> tuple[dict[str, float], float, float]:
+    """Spin for `seconds` with recording[0] set (the callbacks record only then); returns (CPU % of one core
+    per process over the window, window start on time.monotonic(), window length [s])."""
+    cpu0 = {n: cpu_seconds(p.pid) for n, p in procs.items()}
+    t0 = time.monotonic()
+    recording[0] = True
+    while time.monotonic() - t0 < seconds:
+        executor.spin_once(timeout_sec=0.05)
+    recording[0] = False
+    wall = time.monotonic() - t0
+    return {n: 100 * (cpu_seconds(p.pid) - cpu0[n]) / wall for n, p in procs.items()}, t0, wall
+
+
+def take_off_and_hold(executor, client, status: list) -> None:
+    """Take off to 3 m through gnc/command (retried until the estimator is ready to arm) and spin until
+    vehicle/status (appended to `status` by the caller's subscription) reports HOLD."""
+    from c4d_interfaces.msg import VehicleStatus
+    from c4d_interfaces.srv import VehicleCommand
+
+    client.wait_for_service(timeout_sec=30)
+    deadline = time.monotonic() + 40
+    while time.monotonic() < deadline:  # retry until the estimator is ready to arm
+        future = client.call_async(VehicleCommand.Request(command=VehicleCommand.Request.CMD_TAKEOFF, altitude=3.0))
+        while not future.done():
+            executor.spin_once(timeout_sec=0.05)
+        if future.result().result == 0:
+            break
+        end = time.monotonic() + 1.0
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+    while not (status and status[-1].nav_state == VehicleStatus.NAV_HOLD):
+        executor.spin_once(timeout_sec=0.05)
+
+
 def run(events: bool, seconds: float, node, executor) -> dict:
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Imu
@@ -95,27 +145,8 @@ def run(events: bool, seconds: float, node, executor) -> dict:
         depth=50, reliability=ReliabilityPolicy.BEST_EFFORT), raw=True)
     client = node.create_client(VehicleCommand, "gnc/command")
     try:
-        client.wait_for_service(timeout_sec=30)
-        deadline = time.monotonic() + 40
-        while time.monotonic() < deadline:  # retry until the estimator is ready to arm
-            future = client.call_async(VehicleCommand.Request(command=VehicleCommand.Request.CMD_TAKEOFF, altitude=3.0))
-            while not future.done():
-                executor.spin_once(timeout_sec=0.05)
-            if future.result().result == 0:
-                break
-            end = time.monotonic() + 1.0
-            while time.monotonic() < end:
-                executor.spin_once(timeout_sec=0.05)
-        while not (status and status[-1].nav_state == VehicleStatus.NAV_HOLD):
-            executor.spin_once(timeout_sec=0.05)
-        cpu0 = {n: cpu_seconds(p.pid) for n, p in procs.items()}
-        t0 = time.monotonic()
-        recording[0] = True
-        while time.monotonic() - t0 < seconds:
-            executor.spin_once(timeout_sec=0.05)
-        recording[0] = False
-        wall = time.monotonic() - t0
-        cpu = {n: 100 * (cpu_seconds(p.pid) - cpu0[n]) / wall for n, p in procs.items()}
+        take_off_and_hold(executor, client, status)
+        cpu, _, wall = measure_window(executor, procs, seconds, recording)
     finally:
         for p in procs.values():
             os.killpg(p.pid, signal.SIGINT)
@@ -160,16 +191,9 @@ def main() -> None:
     if any(":=" not in p for p in args.core_param):
         parser.error("--core-param takes NAME:=VALUE")
     CORE_PARAMS.extend(args.core_param)
-    lease = ros_domain.acquire()
-    os.environ["ROS_DOMAIN_ID"] = str(lease.domain_id)
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    lease, node, executor = private_ros("loop_bench")
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
 
-    rclpy.init()
-    node = rclpy.create_node("loop_bench")
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
     variants = [(label, events) for label, events in (("EventsExecutor", True), ("SingleThreaded", False))
                 if args.executors == "both" or (args.executors == "events") == events]
     hog = start_hog() if args.hog else None
