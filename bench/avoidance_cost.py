@@ -9,7 +9,8 @@ back with fresh inputs, in rounds interleaving the configurations so that drift 
   fence+4    the fence and 4 obstacles, 2 of them inside the detection range (APF, cap and stall detector work)
   fence+20   the fence and 20 obstacles (a cluttered scan)
 Prints median and p99 µs per call, the ratio of medians to `off`, the share of the 2 ms tick the task
-takes when it runs (budget 200 µs = 10 %) and its CPU share at 100 Hz, and the platform-stall probe's worst oversleep (a stall there is the machine's, not c4d's).
+takes when it runs (budget 200 µs = 10 %) and its CPU share at 100 Hz, and the platform-stall probe's
+worst oversleep (a stall there is the machine's, not c4d's).
 
 Run under the graph lock: `flock /tmp/c4d_graph.lock python bench/avoidance_cost.py [--calls 20000]`.
 """

@@ -37,20 +37,21 @@ def graph(module_processes, ros_node, tmp_path_factory):
     nodes = [("c4d_sim", "sim", ["--ros-args", "-p", f"world:={world}"]), ("c4d_gnc", "perception", []),
              ("c4d_gnc", "navigation", []), ("c4d_gnc", "core", ["--ros-args", "-p", "rt_priority:=50"]),
              ("c4d_mission", "mission", [])]
-    procs = {name: module_processes.spawn(name, [installed_executable(pkg, name), *args]) for pkg, name, args in nodes}
-    return (*ros_node, procs, module_processes)
+    spawn = module_processes.spawn
+    return (*ros_node, {name: spawn(name, [installed_executable(pkg, name), *args]) for pkg, name, args in nodes},
+            module_processes)
 
 
 def test_mission_through_pillars_then_fence_push(graph):
     from nav_msgs.msg import Odometry
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+    node, executor, procs, group = graph
     from c4d_common.plan import Geofence, Item, Plan
     from c4d_interfaces.msg import ExecutorStats, GuidanceSetpoint, MissionState, Surroundings, VehicleState
     from c4d_interfaces.srv import MissionControl, SetGeofence, UploadMission, VehicleCommand
     from c4d_ros.plan_msgs import geofence_to_msg, plan_to_msg
 
-    node, executor, procs, group = graph
     best = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     rec = {"truth": None, "obstacles": None, "mission": None, "clearance": math.inf, "overruns": []}

@@ -52,37 +52,31 @@ INF = math.inf
 
 
 # ----------------------------------------------------------------------------- the potential
-def potential(d: float, detection_range: float, protection_radius: float) -> float:
-    """U(d): 0 for d >= D, (D - d)^3 / ((D - r)(d - r)) on (r, D), +inf at or below r."""
+def potential_terms(d: float, detection_range: float, protection_radius: float) -> tuple[float, float, float]:
+    """(U(d), -U'(d), U''(d)): all 0 for d >= D, all +inf at or below r, the closed forms on (r, D)."""
     big_d, r = detection_range, protection_radius
     if d >= big_d:
-        return 0.0
+        return 0.0, 0.0, 0.0
     if d <= r:
-        return INF
-    u, w = big_d - d, d - r
-    return u * u * u / ((big_d - r) * w)
+        return INF, INF, INF
+    u, w, c = big_d - d, d - r, big_d - r
+    return (u * u * u / (c * w), u * u * (3.0 * w + u) / (c * w * w),
+            (6.0 * u * w * w + 6.0 * u * u * w + 2.0 * u * u * u) / (c * w * w * w))
+
+
+def potential(d: float, detection_range: float, protection_radius: float) -> float:
+    """U(d): 0 for d >= D, (D - d)^3 / ((D - r)(d - r)) on (r, D), +inf at or below r."""
+    return potential_terms(d, detection_range, protection_radius)[0]
 
 
 def repulsion(d: float, detection_range: float, protection_radius: float) -> float:
     """-U'(d) >= 0: the magnitude of the repulsive force (0 beyond D, +inf at or below r)."""
-    big_d, r = detection_range, protection_radius
-    if d >= big_d:
-        return 0.0
-    if d <= r:
-        return INF
-    u, w = big_d - d, d - r
-    return u * u * (3.0 * w + u) / ((big_d - r) * w * w)
+    return potential_terms(d, detection_range, protection_radius)[1]
 
 
 def potential_second_derivative(d: float, detection_range: float, protection_radius: float) -> float:
     """U''(d) (0 beyond D, +inf at or below r); for the smoothness proof."""
-    big_d, r = detection_range, protection_radius
-    if d >= big_d:
-        return 0.0
-    if d <= r:
-        return INF
-    u, w = big_d - d, d - r
-    return (6.0 * u * w * w + 6.0 * u * u * w + 2.0 * u * u * u) / ((big_d - r) * w * w * w)
+    return potential_terms(d, detection_range, protection_radius)[2]
 
 
 # ----------------------------------------------------------------------------- parameters and inputs

@@ -43,20 +43,21 @@ CORNERS = [(0.0, 0.0), (15.0, 0.0), (15.0, 15.0), (0.0, 15.0), (0.0, 0.0)]
 
 @dataclass
 class Pillar:
+    """A pillar of the test world; a mover when `velocity` is set (moving from `start` for `span` s)."""
+
     ident: int
     x: float
     y: float
     radius: float
-    vx: float = 0.0
-    vy: float = 0.0
-    start: float | None = None  # movers: time they start moving (None: static)
+    velocity: tuple[float, float] = (0.0, 0.0)
+    start: float | None = None  # movers: time they start moving (None: not yet)
     span: float = 0.0  # [s] movers stop after this long
 
     def centre(self, t: float) -> tuple[float, float]:
         if self.start is None or t < self.start:
             return self.x, self.y
         dt = min(t - self.start, self.span)
-        return self.x + self.vx * dt, self.y + self.vy * dt
+        return self.x + self.velocity[0] * dt, self.y + self.velocity[1] * dt
 
     def moving(self, t: float) -> bool:
         return self.start is not None and self.start <= t < self.start + self.span
@@ -83,7 +84,7 @@ class World:
         if now >= self.next_feed:
             self.next_feed = now + 0.1
             inputs.obstacles = tuple(Obstacle(p.ident, *p.centre(now), p.radius,
-                                              *((p.vx, p.vy) if p.moving(now) else (0.0, 0.0)), stamp=now)
+                                              *(p.velocity if p.moving(now) else (0.0, 0.0)), stamp=now)
                                      for p in self.pillars)
             inputs.obstacles_stamp = now
 
@@ -108,7 +109,7 @@ def fly_mission(pillars: list[Pillar], timeout: float = 150.0, launch_movers: bo
     while loop.t < timeout and executor.status == MissionStatus.ACTIVE:
         if launch_movers and executor.current == 1:
             for p in pillars:
-                if p.start is None and (p.vx or p.vy):
+                if p.start is None and p.velocity != (0.0, 0.0):
                     p.start = loop.t
         s, out = loop.plant.state, loop.core.out
         vehicle = Vehicle(s.position, out.armed, out.landed not in (Landed.ON_GROUND,), int(out.nav),
@@ -173,9 +174,9 @@ def test_random_pillars_on_the_square_legs_are_avoided_and_the_mission_completes
 @pytest.mark.parametrize("case", ["head-on", "crossing"])
 def test_a_2_m_s_mover_on_a_leg_keeps_its_distance(case):
     if case == "head-on":  # along the first leg towards the vehicle, for 12 s
-        mover = Pillar(9, 17.0, 0.0, 0.4, vx=-2.0, span=12.0)
+        mover = Pillar(9, 17.0, 0.0, 0.4, (-2.0, 0.0), span=12.0)
     else:  # across the first leg, timed to meet the vehicle mid-leg
-        mover = Pillar(9, 7.5, -7.5, 0.4, vy=2.0, span=12.0)
+        mover = Pillar(9, 7.5, -7.5, 0.4, (0.0, 2.0), span=12.0)
     loop, executor, world = fly_mission([mover], launch_movers=True)
     assert executor.status == MissionStatus.COMPLETED, (executor.current, loop.plant.state.position)
     assert world.clearance[9] >= R, world.clearance
