@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
         values.sort()
         median, p99 = statistics.median(values), values[int(0.99 * (len(values) - 1))]
         print(f"{name:<12} {median:>10.1f} {p99:>9.1f} {median / base:>6.2f}x {median / 20:>9.2f}% "
-              f"{median * 1e-4:>11.3f}%")
+              f"{median * 0.01:>11.3f}%")
     worst = max((s for _, s in stalls), default=0.0)
     print(f"platform-stall probe: worst oversleep {worst:.2f} ms over {len(stalls)} s")
     return 0
