@@ -19,9 +19,11 @@ go-to commanded outside the plan. The rules:
 - mission/control start and resume cancel a detour (the plan takes over again); pause asks the
   core to HOLD.
 - The fence in force (`fence`, fence.ActiveFence) validates plans and go-to targets; geofence/set
-  replaces it (`set_geofence`). A leg that the fence in force blocks — the one being flown when a
-  new fence arrives, or any new leg after — is not flown: the mission pauses (a go-to or RTL is
-  cancelled) and the core is asked to HOLD, with the reason in `notices`.
+  replaces it (`set_geofence`). A plan leg that the fence in force blocks — the one being flown
+  when a new fence arrives, or any new leg after — is not flown: the mission pauses and the core
+  is asked to HOLD, with the reason in `notices`. A go-to or RTL is never stopped here: a go-to
+  was checked (or forced) when commanded, and an RTL — a failsafe's too — must not be cancelled
+  by the fence it returns from; the core's barrier keeps both out of the fence.
 - `step()` runs the mission before the detour every tick, so the requests both send reach the core
   in that order: a plan's final HOLD always precedes the GOTO of an RTL commanded at once (the
   executor asks GOTO on every new leg and completes a plan in the step that passes its last item).
@@ -108,7 +110,7 @@ class CommandArbiter:
         self._awaiting_since: float | None = None
         self.fence = ActiveFence()
         self.notices: list[str] = []  # for the log: legs blocked by the fence (the node drains it)
-        self._checked_legs: dict[int, object] = {}  # runner id -> the last leg checked against the fence
+        self._checked_leg: object = None  # the plan's last leg checked against the fence
 
     # ------------------------------------------------------------------ plans
     def accept(self, plan: Plan, home: GeoOrigin | None, endurance_s: float | None) -> Acceptance:
@@ -228,37 +230,32 @@ class CommandArbiter:
         if why:
             return Decision(CommandResult.DENIED, why)
         self.fence.set(fence)
-        self._checked_legs.clear()
-        stopped = [self._stop_blocked(runner, vehicle.position) for runner in (self.mission, self.detour)]
-        said = [s for s in stopped if s]
-        message = ("fence cleared" if fence.empty else "fence in force") + (f"; {'; '.join(said)}" if said else "")
+        self._checked_leg = None
+        said = self._stop_blocked(vehicle.position)
+        message = ("fence cleared" if fence.empty else "fence in force") + (f"; {said}" if said else "")
         return Decision(CommandResult.ACCEPTED, message, core=(Command.HOLD,) if said else ())
 
-    def _stop_blocked(self, runner: MissionExecutor, position: Vec) -> str:
-        """Stop `runner` when the fence in force blocks its leg from `position` (the mission pauses,
-        a detour is cancelled); the reason, "" when not blocked or not flying a leg."""
-        leg = runner.leg
-        if runner.status != MissionStatus.ACTIVE or leg is None or runner.home is None:
+    def _stop_blocked(self, position: Vec) -> str:
+        """Pause the mission when the fence in force blocks its leg from `position`; the reason, ""
+        when not blocked or not flying a leg."""
+        mission, leg = self.mission, self.mission.leg
+        if mission.status != MissionStatus.ACTIVE or leg is None or mission.home is None:
             return ""
-        why = leg_blocked(self.fence.fence, runner.home, position, leg[1])
+        why = leg_blocked(self.fence.fence, mission.home, position, leg[1])
         if not why:
             return ""
-        if runner is self.mission:
-            self.mission.pause()
-            text = f"mission paused: the leg to item {self.mission.current + 1} {why}"
-        else:
-            self.detour.clear()
-            text = f"go-to / RTL cancelled: its leg {why}"
+        mission.pause()
+        text = f"mission paused: the leg to item {mission.current + 1} {why}"
         self.notices.append(text)
         return text
 
-    def _check_new_leg(self, runner: MissionExecutor, out: Output, position: Vec) -> None:
-        """Each new leg is checked once against the fence in force; a blocked one is not flown."""
-        leg = runner.leg
-        if leg is None or self._checked_legs.get(id(runner)) is leg:
+    def _check_new_leg(self, out: Output, position: Vec) -> None:
+        """Each new leg of the plan is checked once against the fence in force; a blocked one is not flown."""
+        leg = self.mission.leg
+        if leg is None or self._checked_leg is leg:
             return
-        self._checked_legs[id(runner)] = leg
-        if self._stop_blocked(runner, position):
+        self._checked_leg = leg
+        if self._stop_blocked(position):
             out.requests.append((Command.HOLD, 0.0))  # after the leg's GOTO: the core keeps the HOLD
             out.setpoint = None
 
@@ -275,7 +272,8 @@ class CommandArbiter:
         outputs = []
         for runner in (self.mission, self.detour):
             out = runner.step(now, dt, vehicle)
-            self._check_new_leg(runner, out, vehicle.position)
+            if runner is self.mission:
+                self._check_new_leg(out, vehicle.position)
             outputs.append((runner, out))
         return outputs
 

@@ -14,8 +14,9 @@ one. The rules, decided here and documented in docs/mission.md:
   geofence_from_msg) or when the vehicle is outside it (`breach`; the floor only while flying),
   unless forced (the core's barrier then pushes the vehicle back inside).
 - Go-to targets and plans are validated against the active fence (plan_validation.check_goto /
-  validate); a leg being flown that the new fence blocks (`leg_blocked`) pauses the mission (the
-  arbiter asks the core to HOLD: the vehicle stops before the zone and never crosses it).
+  validate); a plan leg being flown that the new fence blocks (`leg_blocked`) pauses the mission
+  (the arbiter asks the core to HOLD: the vehicle stops before the zone and never crosses it). A
+  go-to or RTL is not stopped (checked or forced when commanded; an RTL returns from a breach).
 
 ROS-free; unit-tested in test/test_fence.py. `revision` counts changes so the node publishes
 geofence/active once per change.
@@ -29,7 +30,7 @@ from enum import Enum
 from typing import Any
 
 from c4d_common.geodesy import GeoOrigin
-from c4d_common.geofence import LocalFence
+from c4d_common.geofence import LocalFence, point_inside
 from c4d_common.plan import Geofence, Plan
 
 Vec = tuple[float, float, float]
@@ -57,17 +58,24 @@ def refusal(fence: Geofence, force: bool, home: GeoOrigin | None, position: Vec,
 
 def leg_blocked(fence: Geofence, home: GeoOrigin, start: Vec, end: Vec) -> str:
     """Why the straight leg start → end cannot be flown inside `fence` ("" when it can): it leaves
-    the inclusion polygon, enters an exclusion zone, or ends beyond the maximum distance from home."""
+    the inclusion polygon, enters an exclusion zone, or ends further out beyond the maximum distance
+    from home. A leg from where the vehicle already is outside (a fence set with force) is judged
+    only by what it makes worse: out of the polygon any way back is fine, and the exclusion zone
+    it starts in does not count."""
     if fence.empty:
         return ""
     local = LocalFence.from_geofence(fence, home)
     a, b = (start[0], start[1]), (end[0], end[1])
-    zone = local.leg_exclusion(a, b)
+    inside_now = replace(local, polygon=(), max_distance=0.0).breach((*a, 0.0))  # the zone it is in, if any
+    others = local if inside_now is None else replace(
+        local, exclusion_polygons=tuple(p for p in local.exclusion_polygons if not point_inside(a, list(p))),
+        exclusion_circles=tuple(c for c in local.exclusion_circles if math.dist(a, c[:2]) >= c[2]))
+    zone = others.leg_exclusion(a, b)
     if zone:
         return f"enters the geofence's {zone}"
-    if not local.leg_inside(a, b):
+    if local.polygon and point_inside(a, list(local.polygon)) and not local.leg_inside(a, b):
         return "leaves the geofence polygon"
-    if local.max_distance > 0 and math.hypot(*b) > local.max_distance:
+    if local.max_distance > 0 and math.hypot(*b) > max(local.max_distance, math.hypot(*a)):
         return f"ends beyond the geofence's {local.max_distance:g} m from home"
     return ""
 

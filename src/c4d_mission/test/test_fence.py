@@ -161,3 +161,32 @@ def test_the_journal_keeps_the_fence_in_force(tmp_path):
     assert loaded.plan.geofence == fence  # exclusions and floor survive in the plan too
     journal.save(JournalEntry(None, Checkpoint(0, MissionStatus.NO_PLAN, 0, -1, 5.0, "start")))
     assert journal.load().fence is None
+
+
+def test_a_forced_goto_and_an_rtl_are_never_stopped_by_the_fence():
+    """test_failsafes_in_flight: a go-to forced 25 m out with a 15 m fence must fly (health's breach
+    → RTL is what it tests), and that RTL back from outside must not be cancelled either."""
+    arbiter = CommandArbiter()
+    short = Plan((Item("takeoff", z=5.0), Item("land")), Geofence(max_distance=15.0))
+    assert arbiter.accept(short, HOME, 3600.0).plan is not None
+    lat, lon = geo(25.0, 0.0)
+    vehicle = Vehicle((0.0, 0.0, 5.0), True, True, int(Nav.HOLD))
+    forced = arbiter.command(VehicleCommandId.GOTO, flying(), True, goto_target(lat, lon, 5.0, math.nan))
+    assert forced.result == CommandResult.ACCEPTED and "forced" in forced.message
+    _, (_, out) = arbiter.step(0.0, 0.02, vehicle)
+    assert out.requests == [(Command.GOTO, 0.0)] and out.setpoint is not None and arbiter.detour.status == MissionStatus.ACTIVE
+    outside = VehicleView(HOME, True, Landed.IN_AIR, (20.0, 0.0, 5.0))
+    assert arbiter.command(VehicleCommandId.RETURN_TO_LAUNCH, outside).result == CommandResult.ACCEPTED
+    vehicle.position = (20.0, 0.0, 5.0)
+    _, (_, out) = arbiter.step(0.02, 0.02, vehicle)
+    assert out.requests == [(Command.RETURN_TO_LAUNCH, 0.0)] and arbiter.detour.status == MissionStatus.ACTIVE
+    assert arbiter.notices == []
+
+
+def test_legs_from_outside_a_forced_fence_are_judged_by_what_they_make_worse():
+    around = Geofence(exclusion_circles=((*geo(0.0, 0.0), 5.0),))
+    assert leg_blocked(around, HOME, (1.0, 0.0, 5.0), (30.0, 0.0, 5.0)) == ""  # out of the zone it is in
+    assert leg_blocked(PLAN_FENCE, HOME, (80.0, 0.0, 5.0), (0.0, 0.0, 5.0)) == ""  # back into the polygon
+    far = Geofence(max_distance=30.0)
+    assert leg_blocked(far, HOME, (40.0, 0.0, 5.0), (35.0, 0.0, 5.0)) == ""  # closer to home
+    assert "beyond" in leg_blocked(far, HOME, (40.0, 0.0, 5.0), (45.0, 0.0, 5.0))  # further out
