@@ -1,5 +1,7 @@
 """Failsafes over the whole graph in real time, each fault injected through the sim (or, for
-the geofence, by a forced go-to beyond it): GNSS loss → land, geofence breach → RTL, low
+the geofence, by a fence set in flight with force around a vehicle already outside it, after a
+forced go-to beyond the plan's fence that the core's barrier stops short of it, issue 18): GNSS
+loss → land, geofence breach → RTL, low
 battery → RTL then critical → land (never back), a dead node detected within 1 s. The action,
 its reason and its timing are asserted from health/summary; the vehicle's reaction from
 vehicle/status and the ground truth."""
@@ -153,12 +155,32 @@ def test_failsafes_in_flight(graph):
     assert refused.result == VehicleCommand.Response.RESULT_DENIED and "exceeds the geofence" in refused.message
     forced = f.command(VehicleCommand.Request.CMD_GOTO, target=target, yaw=math.nan, force=True)
     assert forced.result == VehicleCommand.Response.RESULT_ACCEPTED, forced.message
-    assert f.spin(20, lambda: math.hypot(*f.truth[:2]) > 15.5), f.truth
-    waited = f.wait_failsafe("RTL", 6.0)
-    assert waited <= 1.0 + 1.0, waited  # policy delay 1 s + estimator lag and one 10 Hz monitor period
+    farthest = 0.0
+
+    def track() -> bool:
+        nonlocal farthest
+        farthest = max(farthest, math.hypot(*f.truth[:2]))
+        return False
+
+    f.spin(10.0, track)  # the core's barrier stops the vehicle inside the 15 m fence (geofence/active)
+    assert 10.0 < farthest < 15.0, farthest
+    assert f.failsafe in ("NONE", "WARN"), f.summary
+    # the last line of defence: a fence set with force that the vehicle is outside of
+    from c4d_common.plan import Geofence
+    from c4d_interfaces.srv import SetGeofence
+    from c4d_ros.plan_msgs import geofence_to_msg
+
+    set_fence = graph[0].create_client(SetGeofence, "geofence/set")
+    t_set = time.monotonic()
+    answer = f.call(set_fence, SetGeofence.Request(fence=geofence_to_msg(Geofence(max_altitude=20.0, max_distance=8.0)),
+                                                   force=True))
+    assert answer.result == SetGeofence.Response.RESULT_ACCEPTED, answer.message
+    f.wait_failsafe("RTL", 6.0)
+    waited = time.monotonic() - t_set
+    assert waited <= 1.0 + 1.0, waited  # policy delay 1 s + one 10 Hz monitor period and the service call
     assert f.summary["reason"].startswith("geofence_breach"), f.summary
-    farthest = math.hypot(*f.truth[:2])
-    report.append(f"geofence breach → RTL {waited:.1f} s after crossing 15.5 m; turned back at {farthest:.1f} m")
+    report.append(f"forced go-to 25 m out stopped by the barrier at {farthest:.1f} m (fence 15 m); a fence of 8 m set "
+                  f"with force → geofence_breach RTL {waited:.1f} s later")
     f.wait_landed(60)
     assert math.hypot(*f.truth[:2]) < 2.0, f.truth  # landed at home
 

@@ -163,7 +163,7 @@ def test_fence_uploaded_in_flight_stops_the_vehicle_before_the_zone(graph):
     assert gcs.command(M.MAV_CMD_MISSION_START, 0, 0).result == M.MAV_RESULT_ACCEPTED, gcs.story()
 
     end = time.monotonic() + 40.0  # take-off to 5 m, then the leg east
-    while truth(gcs)[0] < 3.0 and time.monotonic() < end:
+    while (gcs.truth.latest() is None or truth(gcs)[0] < 3.0) and time.monotonic() < end:
         gcs.recv("HEARTBEAT", 0.2)
         assert all(p.poll() is None for p in gcs.procs.values()), "a node died"
     east, _, up, speed = truth(gcs)

@@ -327,7 +327,11 @@ class MissionExecutor:
             self._phase, self._tracker = "climb", None
         if self._phase == "climb":
             target = (v.position[0], v.position[1], max(v.position[2], altitude)) if self._tracker is None else self._tracker.b
-            if self._fly(now, dt, target, 1.0, v, out, follow=Command.RETURN_TO_LAUNCH):
+            self._fly(now, dt, target, 1.0, v, out, follow=Command.RETURN_TO_LAUNCH)
+            # the climb is judged by its altitude alone: the core's barrier may hold the vehicle away
+            # from where the RTL started (an RTL from beyond the fence is pushed back inside) and the
+            # return must not wait for a point it cannot reach (issue 18)
+            if self._tracker is not None and self._tracker.done and abs(v.position[2] - target[2]) <= 1.0:
                 self._phase, self._tracker = "home", None
             return out
         if self._phase == "home":

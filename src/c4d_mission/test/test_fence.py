@@ -190,3 +190,19 @@ def test_legs_from_outside_a_forced_fence_are_judged_by_what_they_make_worse():
     far = Geofence(max_distance=30.0)
     assert leg_blocked(far, HOME, (40.0, 0.0, 5.0), (35.0, 0.0, 5.0)) == ""  # closer to home
     assert "beyond" in leg_blocked(far, HOME, (40.0, 0.0, 5.0), (45.0, 0.0, 5.0))  # further out
+
+
+def test_an_rtl_pushed_back_by_the_barrier_still_returns():
+    """test_failsafes_in_flight: an RTL from 14 m out with an 8 m fence climbed where the barrier
+    held the vehicle (7 m out) and waited for ever for the climb's start point; the climb is judged
+    by its altitude."""
+    arbiter = CommandArbiter()
+    vehicle = Vehicle((14.0, 0.0, 5.0), True, True, int(Nav.HOLD))
+    assert arbiter.command(VehicleCommandId.RETURN_TO_LAUNCH, flying((14.0, 0.0, 5.0))).result == CommandResult.ACCEPTED
+    requests, t = [], 0.0
+    while t < 10.0 and len(requests) < 2:
+        requests += arbiter.step(t, 0.02, vehicle)[1][1].requests
+        vehicle.position = (7.0, 0.0, min(15.0, vehicle.position[2] + 0.05))  # pushed inside, climbing
+        t += 0.02
+    assert requests == [(Command.RETURN_TO_LAUNCH, 0.0)] * 2  # the climb, then the leg home
+    assert arbiter.detour.leg[1][:2] == (0.0, 0.0)
