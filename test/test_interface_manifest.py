@@ -38,7 +38,7 @@ ACTION_INFIX = "/_action/"  # an action's own topics and services: compared as t
 SETTLE_S = 30.0  # after the ten nodes are up: the recorder subscribes to topics as it discovers them
 EMPTY_MEANS_NONE = {  # parameters whose empty value in force means "none" (no file behind it)
     "/mission": {"plan_file"}, "/health": {"link_topic", "unwatched_nodes"}, "/bridge": {"signing_key_file"},
-    "/recorder": {"include", "exclude"},
+    "/recorder": {"include", "exclude"}, "/sim": {"world"},
 }
 
 
