@@ -152,7 +152,8 @@ class NavigationNode:
             STATE_FRAMES, sec, nanosec, *MAP_FRAME, *BASE_LINK, valid, *ekf.p.tolist(), *ekf.v.tolist(),
             *ekf.accel_world.tolist(), qx, qy, qz, qw, *filt.omega.tolist(), *filt.alpha.tolist(),
             *P[0:3, 0:3].ravel().tolist(), *P[3:6, 3:6].ravel().tolist(), *P[6:9, 6:9].ravel().tolist(),
-            *ekf.bg.tolist(), *ekf.ba.tolist(), terrain, *origin, *geodetic)
+            *ekf.bg.tolist(), *ekf.ba.tolist(), terrain, *origin, *geodetic,
+            VehicleState.SOURCE_GNSS if ekf.position_valid else VehicleState.SOURCE_NONE, VehicleState.SOURCE_BARO)
 
     def odometry_msg(self, sec: int, nanosec: int) -> Odometry:
         ekf, odom = self.ekf, Odometry()

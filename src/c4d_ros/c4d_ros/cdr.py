@@ -160,7 +160,7 @@ IMU_ACCEL = slice(30, 33)
 # c4d_interfaces/VehicleState (see its .msg): header, child_frame_id, valid, position, velocity,
 # acceleration, orientation (x y z w), angular_velocity, angular_acceleration, 3 covariances[9],
 # gyro_bias, accel_bias, terrain_distance (float32), origin and geodetic (GeoPoint: lat lon alt)
-VEHICLE_STATE = CdrLayout(HEADER + "S" + "I" + "ddd" * 3 + "dddd" + "ddd" * 2 + "d" * 27 + "ddd" * 2 + "f" + "ddd" * 2)
+VEHICLE_STATE = CdrLayout(HEADER + "S" + "I" + "ddd" * 3 + "dddd" + "ddd" * 2 + "d" * 27 + "ddd" * 2 + "f" + "ddd" * 2 + "BB")
 
 # c4d_interfaces/ActuatorCommand: header, armed, outputs (float32[]), tick, input_stamp
 ACTUATOR_COMMAND = CdrLayout(HEADER + "?" + "F" + "Q" + "iI")

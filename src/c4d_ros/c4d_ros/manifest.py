@@ -164,6 +164,19 @@ OFFBOARD_STATUS = Topic("offboard/status", "diagnostic_msgs/msg/DiagnosticStatus
                         "active action; health: the gateway's liveness")
 NAV_POSE = Topic("navigation/pose", "geometry_msgs/msg/PoseStamped", ST, "50 Hz (odometry_rate_hz)", ("navigation",), (),
                  "the estimate's pose in `map` for external nodes")
+# --- navigation sources (issue 19, docs/navigation.md) ----------------------------------------
+NAV_STATUS = Topic("navigation/status", "c4d_interfaces/msg/EstimatorStatus", L, "5 Hz + on change", ("navigation",),
+                   ("health", "bridge"), "fused sources, switches, external input health and rejections, GNSS integrity")
+EXTERNAL_ODOMETRY = Topic("navigation/external/odometry", "nav_msgs/msg/Odometry", S, "external: up to 200 Hz",
+                          ("sim", "bridge"), ("navigation",),
+                          "public input: VIO / mocap odometry (frame_id one of `external_frame_ids`, child base_link); "
+                          "sim: external-pose emulator; bridge: MAVLink ODOMETRY")
+EXTERNAL_POSE = Topic("navigation/external/pose", "geometry_msgs/msg/PoseWithCovarianceStamped", S,
+                      "external: up to 200 Hz", ("bridge",), ("navigation",),
+                      "public input: pose of base_link (frame_id one of `external_frame_ids`); "
+                      "bridge: MAVLink VISION_POSITION_ESTIMATE, ATT_POS_MOCAP")
+EXTERNAL_GNSS = Topic("navigation/external/gnss", "sensor_msgs/msg/NavSatFix", S, "external: 1-20 Hz", ("bridge",),
+                      ("navigation",), "public input: fixes from another receiver; bridge: MAVLink GPS_INPUT")
 # --- recorder -----------------------------------------------------------------------------
 RECORDER_STATUS = Topic("recorder/status", "diagnostic_msgs/msg/DiagnosticStatus", L, "1 Hz + on change", ("recorder",),
                         (), "state, file, written, dropped; the c4d CLI and tests")
@@ -172,7 +185,7 @@ TOPICS: tuple[Topic, ...] = (
     IMU, GPS, BARO, MAG, RANGE_DOWN, BATTERY, GROUND_TRUTH, ACTUATOR_LINK, CLOCK,
     P_IMU, P_GPS, P_BARO, P_MAG, P_RANGE_DOWN, P_HEALTH,
     SCAN, SIM_OBSTACLES, SURROUNDINGS, MARKERS,
-    NAV_STATE, NAV_ODOMETRY, NAV_POSE,
+    NAV_STATE, NAV_ODOMETRY, NAV_POSE, NAV_STATUS, EXTERNAL_ODOMETRY, EXTERNAL_POSE, EXTERNAL_GNSS,
     SETPOINT, PILOT_SETPOINT, OFFBOARD_SETPOINT, ACTUATORS, STATUS, EXECUTOR_STATS, SCHEDULE,
     MISSION_STATE, MISSION_PLAN, GEOFENCE, CAPTURES, GIMBAL,
     DIAGNOSTICS, HEALTH_SUMMARY,
