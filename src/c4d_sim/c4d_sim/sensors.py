@@ -5,14 +5,17 @@ horizontal/vertical noise and a transport latency), barometer (ISA pressure of t
 altitude plus noise), magnetometer (Earth field rotated into the body, plus noise), downward
 range finder (distance to the ground along body −z, max range), battery (open-circuit voltage
 from the state of charge, sag I·R, current from the motor thrusts). Faults change what the
-models output: dropout (no sample), freeze (last sample repeated), GNSS loss or drift, battery
-drain factor. The node turns samples into sensor_msgs.
+models output: dropout (no sample), freeze (last sample repeated), GNSS loss, spoofing (drift at a
+rate, a jump, meaconing: the position of `gps_delay_s` ago, stamped now) and jamming (fixes lost
+with a probability, noise and reported σ multiplied), battery drain factor. The node turns samples
+into sensor_msgs.
 """
 
 from __future__ import annotations
 
 import math
 import random
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 
@@ -23,6 +26,7 @@ from .plant import PlantState
 
 Vec = tuple[float, float, float]
 RANGE_MIN = 0.05  # [m] minimum range of the downward range finder
+GPS_DELAY_MAX_S = 60.0  # [s] longest meaconing delay (the receiver's true-position history is kept this long)
 EARTH_FIELD_ENU: Vec = (0.0, 2.2e-5, -4.2e-5)  # [T] ~ mid-latitude: 22 µT north, 42 µT down
 
 
@@ -89,6 +93,10 @@ class Faults:
     imu_freeze: bool = False
     gps_loss: bool = False
     gps_drift: Vec = (0.0, 0.0, 0.0)  # [m/s] drift rate of the reported position (ENU)
+    gps_jump: Vec = (0.0, 0.0, 0.0)  # [m] step added to the reported position (ENU)
+    gps_delay_s: float = 0.0  # [s] meaconing: fixes report the true position this long ago, stamped now
+    gps_jam_dropout: float = 0.0  # probability that a fix is lost (jamming)
+    gps_jam_sigma_factor: float = 1.0  # jamming: noise and reported σ multiplied (HDOP-like)
     baro_dropout: bool = False
     baro_freeze: bool = False
     mag_dropout: bool = False
@@ -137,6 +145,7 @@ class SensorSuite:
         self.gyro_bias = [g(0, c.gyro_bias_initial) for _ in range(3)]
         self.accel_bias = [g(0, c.accel_bias_initial) for _ in range(3)]
         self.drift = [0.0, 0.0, 0.0]
+        self.gps_history: deque[tuple[float, Vec]] = deque()  # (t, true position) at each GNSS sample, for meaconing
         self.charge_used_ah = 0.0
         self._last_imu: ImuSample | None = None
         self._last_baro: tuple[float, float] | None = None
@@ -167,14 +176,35 @@ class SensorSuite:
         c, f = self.config, self.faults
         for k in range(3):
             self.drift[k] += f.gps_drift[k] * dt
+        history = self.gps_history
+        history.append((s.t, s.position))
+        while history[0][0] < s.t - GPS_DELAY_MAX_S:
+            history.popleft()
         if f.gps_loss:
             return None
-        g = self.rng.gauss
-        e = s.position[0] + self.drift[0] + g(0, c.gps_noise_horizontal)
-        n = s.position[1] + self.drift[1] + g(0, c.gps_noise_horizontal)
-        u = s.position[2] + self.drift[2] + g(0, c.gps_noise_vertical)
+        if f.gps_jam_dropout > 0.0 and self.rng.random() < f.gps_jam_dropout:
+            return None
+        g, jump = self.rng.gauss, f.gps_jump
+        sigma_h, sigma_v = c.gps_noise_horizontal * f.gps_jam_sigma_factor, c.gps_noise_vertical * f.gps_jam_sigma_factor
+        p = self.position_at(s.t - f.gps_delay_s) if f.gps_delay_s > 0.0 else s.position
+        e = p[0] + self.drift[0] + jump[0] + g(0, sigma_h)
+        n = p[1] + self.drift[1] + jump[1] + g(0, sigma_h)
+        u = p[2] + self.drift[2] + jump[2] + g(0, sigma_v)
         lat, lon, alt = self.origin.to_geodetic(e, n, u)
-        return GpsSample(s.t, lat, lon, alt, c.gps_noise_horizontal, c.gps_noise_vertical)
+        return GpsSample(s.t, lat, lon, alt, sigma_h, sigma_v)
+
+    def position_at(self, t: float) -> Vec:
+        """The true position at time t, linear between the GNSS samples' history (the oldest before it)."""
+        history = self.gps_history
+        if t <= history[0][0]:
+            return history[0][1]
+        for i in range(len(history) - 1, 0, -1):  # newest first: a delay of seconds looks back a few dozen entries
+            t0, p0 = history[i - 1]
+            if t0 <= t:
+                t1, p1 = history[i]
+                a = min(1.0, (t - t0) / (t1 - t0)) if t1 > t0 else 1.0
+                return (p0[0] + a * (p1[0] - p0[0]), p0[1] + a * (p1[1] - p0[1]), p0[2] + a * (p1[2] - p0[2]))
+        return history[-1][1]
 
     def baro(self, s: PlantState) -> tuple[float, float] | None:
         """(stamp, static pressure [Pa])."""

@@ -46,6 +46,15 @@ from c4d_sched.tickschedule import build_schedule
 
 from . import lockstep_sim
 from .actuator_link import ActuatorLinkMonitor
+from .external_pose import (
+    OUTPUTS,
+    SIGMA_FLOOR_RAD,
+    ExternalPoseEmulator,
+    ExternalPoseSample,
+    ExternalPoseSettings,
+    mavlink_vision_position,
+    parse_udpout,
+)
 from .lidar import Lidar, LidarConfig
 from .sensors import RANGE_MIN, ImuSample
 from .sim_config import SimConfig, SimConfigError, default_sim_config, load_sim_config
@@ -65,6 +74,31 @@ WORLD_PARAMS = {
     "scan_noise_m": Spec(0.02, "lidar range noise, 1 sigma [m]", 0.0, 1.0, read_only=True),
 }
 OBSTACLES_RATE_HZ = 10.0  # sim/obstacles
+EXTERNAL = "external_pose."
+EXTERNAL_POSE_PARAMS = {EXTERNAL + name: spec for name, spec in {
+    "enabled": Spec(False, "external-pose emulator on (settable at run time; false = the source is lost) [bool]"),
+    "rate_hz": Spec(100.0, "external pose sample rate (must divide the physics rate) [Hz]", 1.0, 1000.0, read_only=True),
+    "latency_s": Spec(0.03, "external pose delivery delay: published this long after its sample time, stamped with the "
+                            "sample time (a multiple of 1/rate_hz; else rounded up to one) [s]", 0.0, 1.0, read_only=True),
+    "noise_m": Spec(0.01, "external pose position noise, 1 sigma per axis (also the reported covariance) [m]", 0.0, 10.0),
+    "yaw_noise_deg": Spec(0.2, "external pose heading noise, 1 sigma (also the reported orientation covariance) [deg]",
+                          0.0, 45.0),
+    "velocity_noise_m_s": Spec(0.02, "external odometry body-velocity noise, 1 sigma per axis [m/s]", 0.0, 10.0),
+    "dropout_probability": Spec(0.0, "probability that an external pose sample is lost [0..1]", 0.0, 1.0),
+    "frame_yaw_deg": Spec(0.0, "yaw of the emulated source's frame in the sim's ENU world, ccw from east; the pose is "
+                               "published in that frame (a change counts a reset) [deg]", -180.0, 180.0),
+    "frame_offset_m": Spec([0.0, 0.0, 0.0], "origin of the emulated source's frame in the sim's ENU world, [x, y, z] "
+                                            "(a change counts a reset) [m]"),
+    "frame_id": Spec("odom", "frame_id of navigation/external/odometry (the source's frame) [name]", read_only=True),
+    "output": Spec("ros", "where the external pose goes: ros (navigation/external/odometry), mavlink "
+                          "(VISION_POSITION_ESTIMATE to mavlink_url) or both [ros|mavlink|both]", read_only=True),
+    "mavlink_url": Spec("udpout:127.0.0.1:14550", "MAVLink destination of VISION_POSITION_ESTIMATE: the bridge's "
+                                                  "udpin endpoint [udpout:HOST:PORT]", read_only=True),
+    "mavlink_sysid": Spec(1, "MAVLink system id of the vehicle (the bridge's SYSID_THISMAV); the emulator is its "
+                             "component 197, MAV_COMP_ID_VISUAL_INERTIAL_ODOMETRY [id]", 1, 255, read_only=True),
+}.items()}
+RUNTIME_EXTERNAL = ("enabled", "noise_m", "yaw_noise_deg", "velocity_noise_m_s", "dropout_probability", "frame_yaw_deg",
+                    "frame_offset_m")
 
 
 def fault_specs(motors: int) -> dict[str, Spec]:
@@ -75,6 +109,13 @@ def fault_specs(motors: int) -> dict[str, Spec]:
              "range_dropout": "the range finder publishes nothing"}
     specs = {FAULT + name: Spec(False, f"fault: {what} [bool]") for name, what in flags.items()}
     specs[FAULT + "gps_drift_m_s"] = Spec([0.0, 0.0, 0.0], "fault: drift rate of the reported GNSS position, [e, n, u] [m/s]")
+    specs[FAULT + "gps_jump_m"] = Spec([0.0, 0.0, 0.0], "fault: step added to the reported GNSS position (spoofing), "
+                                                        "[e, n, u] [m]")
+    specs[FAULT + "gps_delay_s"] = Spec(0.0, "fault: meaconing — GNSS fixes report the true position this long ago, "
+                                             "stamped now; 0 = off [s]", 0.0, 60.0)
+    specs[FAULT + "gps_jam_dropout"] = Spec(0.0, "fault: jamming — probability that a GNSS fix is lost [0..1]", 0.0, 1.0)
+    specs[FAULT + "gps_jam_sigma_factor"] = Spec(1.0, "fault: jamming — GNSS noise and reported covariance σ multiplied "
+                                                      "(HDOP-like); 1 = nominal [factor]", 1.0, 1000.0)
     specs[FAULT + "motor_health"] = Spec([1.0] * motors, f"fault: thrust factor of each of the {motors} motors, "
                                                          "1 = nominal, 0 = failed [0..1]")
     specs[FAULT + "battery_drain_factor"] = Spec(1.0, "fault: multiplies the charge drawn from the battery [factor]",
@@ -86,6 +127,29 @@ def fault_specs(motors: int) -> dict[str, Spec]:
 
 def read_rt_priority(node) -> int:
     return int(declare(node, "rt_priority", node_runtime.RT_PRIORITY))
+
+
+def read_external_pose(node, physics_rate_hz: int) -> tuple[ExternalPoseSettings, dict[str, Any]]:
+    """The emulator's settings and its read-only output parameters; ParameterError naming a bad one."""
+    p = {name.removeprefix(EXTERNAL): value for name, value in declare_all(node, EXTERNAL_POSE_PARAMS).items()}
+    divider = physics_rate_hz / p["rate_hz"]
+    if abs(divider - round(divider)) > 1e-9:
+        raise ParameterError(f"parameter 'external_pose.rate_hz': {p['rate_hz']:g} Hz does not divide the physics rate "
+                             f"{physics_rate_hz} Hz (50, 100, 200 do)")
+    if p["output"] not in OUTPUTS:
+        raise ParameterError(f"parameter 'external_pose.output': {p['output']!r} is not one of {', '.join(OUTPUTS)}")
+    if p["output"] != "ros":
+        try:
+            parse_udpout(p["mavlink_url"])
+        except ValueError as exc:
+            raise ParameterError(f"parameter 'external_pose.mavlink_url': {exc}") from None
+    settings = ExternalPoseSettings(rate_hz=float(p["rate_hz"]), latency_s=float(p["latency_s"]))
+    probe = ExternalPoseEmulator(settings)
+    for name in RUNTIME_EXTERNAL:  # start values go through the same checks as run-time ones
+        reason = probe.set(name, p[name])
+        if reason:
+            raise ParameterError(f"parameter 'external_pose.{name}': {reason}")
+    return settings, p
 
 
 def read_config(node) -> SimConfig:
@@ -106,6 +170,14 @@ def read_world(node, physics_rate_hz: int = 1000) -> tuple[World | None, LidarCo
     return (load_world(p["world"]) if p["world"] else None), lidar
 
 
+def diagonal_6x6(diagonal: tuple[float, ...]) -> array.array:
+    """A 6x6 row-major covariance with this diagonal (the float64 array an Odometry covariance takes)."""
+    out = array.array("d", bytes(8 * 36))
+    for i, value in enumerate(diagonal):
+        out[7 * i] = value
+    return out
+
+
 class SimNode:
     """The simulator's ROS face: fault parameters, sensors/* and sim/ground_truth publishers fed
     by executive tasks, control/actuators and the parameter services drained in the executive's
@@ -124,6 +196,15 @@ class SimNode:
             reason = self.sim.set_fault(name.removeprefix(FAULT), value)
             if reason:
                 raise ParameterError(f"parameter '{name}': {reason}")
+        settings, ext = read_external_pose(node, config.physics_rate_hz)
+        self.external = ExternalPoseEmulator(settings, config.seed)
+        self.external_frame = ext["frame_id"]
+        self.external_ros = ext["output"] in ("ros", "both")
+        self.vision = None
+        if ext["output"] in ("mavlink", "both"):
+            from .mavlink_out import VisionSender  # pymavlink only when MAVLink output is on
+
+            self.vision = VisionSender(ext["mavlink_url"], int(ext["mavlink_sysid"]))
         node.add_on_set_parameters_callback(self.on_parameters)
         self.pub_imu = node.create_publisher(Imu, manifest.IMU.name, manifest.IMU.qos)
         self.pub_gps = node.create_publisher(NavSatFix, manifest.GPS.name, manifest.GPS.qos)
@@ -132,6 +213,8 @@ class SimNode:
         self.pub_range = node.create_publisher(Range, manifest.RANGE_DOWN.name, manifest.RANGE_DOWN.qos)
         self.pub_battery = node.create_publisher(BatteryState, manifest.BATTERY.name, manifest.BATTERY.qos)
         self.pub_truth = node.create_publisher(Odometry, manifest.GROUND_TRUTH.name, manifest.GROUND_TRUTH.qos)
+        # always created (the graph matches the manifest); publishes while external_pose.enabled with output ros|both
+        self.pub_external = node.create_publisher(Odometry, manifest.EXTERNAL_ODOMETRY.name, manifest.EXTERNAL_ODOMETRY.qos)
         self.pub_link = node.create_publisher(DiagnosticStatus, manifest.ACTUATOR_LINK.name, manifest.ACTUATOR_LINK.qos)
         # both exist without a world too (the graph matches the manifest); they publish only with one
         self.pub_scan = node.create_publisher(LaserScan, manifest.SCAN.name, manifest.SCAN.qos)
@@ -151,9 +234,11 @@ class SimNode:
         self.drainer.adopt_node_services()  # fault injection via the parameter services, no executor needed
         tasks = dict(zip(("physics", *SENSOR_TASKS), (self.sim.physics, self.imu, self.gps, self.baro, self.mag,
                                                       self.range_down, self.battery, self.truth), strict=True))
-        world_rates = {"scan": self.lidar_config.rate_hz, "obstacles": OBSTACLES_RATE_HZ} if world else {}
+        extra_rates = {"external_pose": settings.rate_hz}
+        extra_rates.update({"scan": self.lidar_config.rate_hz, "obstacles": OBSTACLES_RATE_HZ} if world else {})
+        tasks.update({"external_pose": self.external_pose})
         tasks.update({"scan": self.scan, "obstacles": self.obstacles} if world else {})
-        schedule = build_schedule(1_000_000 // config.physics_rate_hz, "gcdplus", task_specs(config, world_rates))
+        schedule = build_schedule(1_000_000 // config.physics_rate_hz, "gcdplus", task_specs(config, extra_rates))
         clock: Clock = MonotonicClock(spin_ns=0)
         if lockstep["lockstep"]:  # simulated time: the executive's clock waits for the core (lockstep_sim)
             self.lockstep = lockstep_sim.SimLockstep(node, 1.0 / config.sensors.imu_rate_hz, lockstep["lockstep_timeout_s"],
@@ -169,7 +254,33 @@ class SimNode:
         self.executive = CyclicExecutive(schedule, tasks, clock, name="sim", input_phase=self.drain,
                                          output_phase=self.step_done if self.lockstep else None,
                                          report_period_s=3600, manage_gc=True,
-                                         catch_up={*SENSOR_TASKS, *world_rates})
+                                         catch_up={*SENSOR_TASKS, *extra_rates})
+
+    def external_pose(self, k: int) -> None:
+        """The external-pose emulator: a sample of the truth now; the samples whose latency has passed go out
+        as navigation/external/odometry and/or VISION_POSITION_ESTIMATE."""
+        emulator, state = self.external, self.plant.state
+        emulator.sample(state)
+        for sample in emulator.due(state.t):
+            if self.external_ros:
+                self.publish_external(sample)
+            if self.vision is not None:
+                self.vision.send(mavlink_vision_position(sample, self.sim.wall_epoch))
+
+    def publish_external(self, sample: ExternalPoseSample) -> None:
+        """nav_msgs/Odometry in the source's frame, child base_link: pose covariance = the emulated noise, twist
+        (body velocity, angular rate) in base_link."""
+        m = Odometry()
+        m.header.stamp, m.header.frame_id, m.child_frame_id = self.stamp(sample.stamp), self.external_frame, "base_link"
+        pose, twist = m.pose.pose, m.twist.twist
+        pose.position.x, pose.position.y, pose.position.z = sample.position
+        pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z = sample.orientation
+        twist.linear.x, twist.linear.y, twist.linear.z = sample.velocity_body
+        twist.angular.x, twist.angular.y, twist.angular.z = sample.angular_velocity
+        sp, so, sv = sample.sigma_position ** 2, sample.sigma_orientation ** 2, sample.sigma_velocity ** 2
+        m.pose.covariance = diagonal_6x6((sp, sp, sp, so, so, so))
+        m.twist.covariance = diagonal_6x6((sv, sv, sv, SIGMA_FLOOR_RAD ** 2, SIGMA_FLOOR_RAD ** 2, SIGMA_FLOOR_RAD ** 2))
+        self.pub_external.publish(m)
 
     def scan(self, k: int) -> None:
         """sensors/scan: the lidar rendered at the vehicle's true position and heading."""
@@ -214,6 +325,11 @@ class SimNode:
             if p.name == "lockstep_pause_at_s" and self.lockstep:
                 self.lockstep.set_pause(p.value)
                 self.node.get_logger().info(f"lockstep: pause at t = {p.value:g} s")
+            if p.name.startswith(EXTERNAL):
+                reason = self.external.set(p.name.removeprefix(EXTERNAL), p.value)
+                if reason:
+                    return SetParametersResult(successful=False, reason=reason)
+                self.node.get_logger().info(f"{p.name} = {p.value}")
             if not p.name.startswith(FAULT):
                 continue
             reason = self.sim.set_fault(p.name.removeprefix(FAULT), p.value)

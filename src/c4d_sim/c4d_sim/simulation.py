@@ -20,7 +20,7 @@ from typing import Any
 from c4d_sched.tickschedule import TaskSpec
 
 from .plant import MultirotorPlant
-from .sensors import Faults, GpsSample, ImuSample, SensorSuite
+from .sensors import GPS_DELAY_MAX_S, Faults, GpsSample, ImuSample, SensorSuite
 from .sim_config import SimConfig, SimConfigError
 from .world import WindField, World
 
@@ -28,8 +28,11 @@ ESC_TIMEOUT_S = 0.2  # without a motor command for this long the ESCs stop the m
 IMU_MAX_BACKLOG_S = 0.1  # IMU samples older than this when the sim catches up are dropped (and counted)
 SENSOR_TASKS = ("imu", "gps", "baro", "mag", "range", "battery", "truth")  # executive tasks after "physics"
 WORLD_TASK_BUDGET_US = 400  # scan / sim/obstacles task budget (bench/lidar_raycast.py: p99 of a 720-beam scan of 50 obstacles)
+EXTERNAL_POSE_BUDGET_US = 150  # external-pose task: sample + Odometry and/or MAVLink frame (bench/sim_external_pose.py)
 BOOL_FAULTS = frozenset({"imu_dropout", "imu_freeze", "gps_loss", "baro_dropout", "baro_freeze", "mag_dropout",
                          "range_dropout"})
+GPS_NUMBER_FAULTS = {"gps_delay_s": (0.0, GPS_DELAY_MAX_S), "gps_jam_dropout": (0.0, 1.0),
+                     "gps_jam_sigma_factor": (1.0, 1000.0)}  # fault → its [low, high]
 
 
 @dataclass
@@ -150,11 +153,16 @@ class Simulation:
             if len(values) != self.motors or not all(0.0 <= v <= 1.0 for v in values):
                 return f"motor_health needs {self.motors} values in [0, 1]"
             self.plant.motor_health = [float(v) for v in values]
-        elif name == "gps_drift_m_s":
-            values = list(value)
-            if len(values) != 3:
-                return "gps_drift_m_s needs 3 values"
-            self.faults.gps_drift = (float(values[0]), float(values[1]), float(values[2]))
+        elif name in ("gps_drift_m_s", "gps_jump_m"):
+            values = [float(v) for v in value]
+            if len(values) != 3 or not all(math.isfinite(v) for v in values):
+                return f"{name} needs 3 finite values [e, n, u]"
+            setattr(self.faults, "gps_drift" if name == "gps_drift_m_s" else "gps_jump", (values[0], values[1], values[2]))
+        elif name in GPS_NUMBER_FAULTS:
+            low, high = GPS_NUMBER_FAULTS[name]
+            if not low <= float(value) <= high:
+                return f"{name} must be in [{low:g}, {high:g}]"
+            setattr(self.faults, name, float(value))
         elif name == "wind_gust_m_s":
             self.extra_gust = float(value)
         elif name == "battery_drain_factor":
@@ -168,15 +176,16 @@ class Simulation:
         return None
 
 
-def task_specs(config: SimConfig, world_rates: dict[str, float] | None = None) -> list[TaskSpec]:
+def task_specs(config: SimConfig, extra_rates: dict[str, float] | None = None) -> list[TaskSpec]:
     """The executive's tasks: physics first in the input class, then the sensors at their rates,
-    then `world_rates` (with a world: {"scan": lidar rate, "obstacles": truth rate}).
+    then `extra_rates` (the external-pose emulator: {"external_pose": rate}; with a world also
+    {"scan": lidar rate, "obstacles": truth rate}).
 
     Raises SimConfigError when a rate does not divide the physics rate."""
     rate, sc = config.physics_rate_hz, config.sensors
     rates = {"imu": sc.imu_rate_hz, "gps": sc.gps_rate_hz, "baro": sc.baro_rate_hz, "mag": sc.mag_rate_hz,
              "range": sc.range_rate_hz, "battery": sc.battery_rate_hz, "truth": config.truth_rate_hz,
-             **(world_rates or {})}
+             **(extra_rates or {})}
 
     def divider(hz: float) -> int:
         d = round(rate / hz)
@@ -184,7 +193,7 @@ def task_specs(config: SimConfig, world_rates: dict[str, float] | None = None) -
             raise SimConfigError(f"sim config: a {hz} Hz rate does not divide the physics rate {rate} Hz")
         return d
 
-    budgets = {"scan": WORLD_TASK_BUDGET_US, "obstacles": WORLD_TASK_BUDGET_US}
+    budgets = {"scan": WORLD_TASK_BUDGET_US, "obstacles": WORLD_TASK_BUDGET_US, "external_pose": EXTERNAL_POSE_BUDGET_US}
     return [TaskSpec("physics", "input", 1, 50, 0)] + [TaskSpec(name, "telemetry", divider(rates[name]),
                                                                 budgets.get(name, 30), None)
-                                                       for name in (*SENSOR_TASKS, *(world_rates or {}))]
+                                                       for name in (*SENSOR_TASKS, *(extra_rates or {}))]

@@ -46,7 +46,14 @@ def test_faults_are_applied_or_refused_with_a_reason(config):
     assert sim.set_fault("motor_health", [1.0, 0.5, 1.0, 1.0]) is None and sim.plant.motor_health[1] == 0.5
     assert sim.set_fault("wind_gust_m_s", 3.0) is None and sim.extra_gust == 3.0
     assert sim.set_fault("motor_health", [1.0, 2.0]) == "motor_health needs 4 values in [0, 1]"
-    assert sim.set_fault("gps_drift_m_s", [1.0]) == "gps_drift_m_s needs 3 values"
+    assert sim.set_fault("gps_drift_m_s", [1.0]) == "gps_drift_m_s needs 3 finite values [e, n, u]"
+    assert sim.set_fault("gps_jump_m", [5.0, -2.0, 0.0]) is None and sim.faults.gps_jump == (5.0, -2.0, 0.0)
+    assert sim.set_fault("gps_jump_m", [1.0, math.nan, 0.0]) == "gps_jump_m needs 3 finite values [e, n, u]"
+    assert sim.set_fault("gps_delay_s", 2.0) is None and sim.faults.gps_delay_s == 2.0
+    assert sim.set_fault("gps_delay_s", 61.0) == "gps_delay_s must be in [0, 60]"
+    assert sim.set_fault("gps_jam_dropout", 1.5) == "gps_jam_dropout must be in [0, 1]"
+    assert sim.set_fault("gps_jam_sigma_factor", 0.5) == "gps_jam_sigma_factor must be in [1, 1000]"
+    assert sim.set_fault("gps_jam_sigma_factor", 4.0) is None and sim.faults.gps_jam_sigma_factor == 4.0
     assert sim.set_fault("battery_drain_factor", -1.0) == "battery_drain_factor must be >= 0"
     assert sim.set_fault("no_such_fault", 1) is not None
 
