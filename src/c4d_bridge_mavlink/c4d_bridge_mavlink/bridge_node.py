@@ -34,6 +34,8 @@ from c4d_ros.params import ParameterError, Spec, declare_all
 from . import encoders as enc
 from .bridge_ros import RosSide
 from .commands import Action, Context, Kind, translate, translate_set_mode
+from .external_inputs import MESSAGES as EXTERNAL_MESSAGES
+from .external_inputs import Clocks, ExternalInputs, GnssSample, OdometrySample
 from .link_monitor import LinkMonitor
 from .manual import PilotInput
 from .mission_protocol import MissionServer
@@ -79,6 +81,7 @@ STREAM_ENCODERS = {
     "HOME_POSITION": enc.home_position, "EXTENDED_SYS_STATE": lambda s, now: enc.extended_sys_state(s),
     "MISSION_CURRENT": lambda s, now: enc.mission_current(s), "POSITION_TARGET_LOCAL_NED": enc.position_target,
     "FENCE_STATUS": enc.fence_status, "OBSTACLE_DISTANCE": enc.obstacle_distances,
+    "ESTIMATOR_STATUS": enc.estimator_status,
 }
 
 
@@ -95,6 +98,13 @@ PARAMETERS: dict[str, Spec] = {
                            "never one shared per-user file: `c4d up` gives each run ${run}/bridge/params.yaml [path]",
                        read_only=True),
     "signing_key_file": Spec("", "MAVLink 2 signing key file; '' = signing off [path]", read_only=True),
+    "external_frame_id": Spec("odom", "frame_id of navigation/external/{pose,odometry} made from MAVLink "
+                              "VISION_POSITION_ESTIMATE / ATT_POS_MOCAP / ODOMETRY (one of the navigation's "
+                              "external_frame_ids) [name]", read_only=True),
+    "external_max_rate_hz": Spec(250.0, "MAVLink position inputs forwarded per message and sender at most at this rate; "
+                                 "the excess is dropped and counted [Hz]", 1.0, 1000.0, read_only=True),
+    "external_max_age_s": Spec(0.5, "MAVLink position inputs whose sample is older than this at arrival are dropped "
+                               "and counted [s]", 0.01, 10.0, read_only=True),
 }
 
 
@@ -113,6 +123,9 @@ class BridgeSettings:
     param_file: Path | None
     signing: SigningConfig | None
     hover: float  # the airframe's hover command: centre of the thrust stick
+    external_frame_id: str = "odom"  # frame_id of the external pose / odometry made from MAVLink
+    external_max_rate_hz: float = 250.0  # [Hz] per message and sender
+    external_max_age_s: float = 0.5  # [s]
 
     @classmethod
     def from_parameters(cls, values: dict[str, Any]) -> BridgeSettings:
@@ -130,8 +143,11 @@ class BridgeSettings:
         except (AirframeError, OSError) as exc:
             raise SettingsError(f"airframe '{values['airframe']}': {exc}") from None
         param_file = values["param_file"]
+        if not values["external_frame_id"].strip():
+            raise SettingsError("external_frame_id must not be empty")
         return cls(urls, values["sysid"], values["udp_rate_bytes_s"], streams, Path(param_file) if param_file else None,
-                   signing, hover)
+                   signing, hover, values["external_frame_id"].strip(), values["external_max_rate_hz"],
+                   values["external_max_age_s"])
 
 
 class BridgeNode:
@@ -158,6 +174,9 @@ class BridgeNode:
         self.ros.bind(self.router, self.missions, self.params)
         self.pilot = PilotInput(settings.hover)
         self.offboard = OffboardDecoder(self.sysid, self.router.compid)
+        self.external = ExternalInputs(self.sysid, self.router.compid, settings.external_max_rate_hz,
+                                       settings.external_max_age_s)
+        self.ros.external_frame_id = settings.external_frame_id
         self.schedulers = self._schedulers(settings, time.monotonic())
         self.last_stats = 0.0
         node.get_logger().info(f"bridge: sysid {self.sysid}, endpoints {', '.join(settings.urls)}, "
@@ -210,14 +229,28 @@ class BridgeNode:
         self.ros.tick(now)
         if now - self.last_stats >= 1.0:
             self.last_stats = now
-            self.ros.publish_link_stats(self.router, self.schedulers, self.monitor.status(now), now, self.offboard)
+            self.ros.publish_link_stats(self.router, self.schedulers, self.monitor.status(now), now, self.offboard,
+                                        self.external)
             self.monitor.timeout_s = self.params.get("COM_DL_LOSS_T")
+            for line in self.external.take_warnings(now):
+                self.ros.node.get_logger().warning(line)
+                self.ros.statustext(M.MAV_SEVERITY_WARNING, line)
+            request = self.external.timesync_request(now)
+            if request is not None:
+                self.router.send(request)
 
     def on_message(self, received: Received) -> None:
         self.monitor.observe(received, time.monotonic())
         msg, kind = received.message, received.message.get_type()
-        if kind == "HEARTBEAT" and msg.type == M.MAV_TYPE_GCS:
+        if kind in EXTERNAL_MESSAGES:
+            self.on_external(msg)
+        elif kind == "HEARTBEAT" and msg.type == M.MAV_TYPE_GCS:
+            self.external.note_gcs(msg.get_srcSystem())
             self.ros.gcs_heartbeat()
+        elif kind == "TIMESYNC":
+            reply = self.external.on_timesync(msg, time.monotonic())
+            if reply is not None:
+                self.router.send(reply)
         elif kind.startswith("MISSION_"):
             self.missions.handle(msg, time.monotonic())
         elif kind.startswith("PARAM_"):
@@ -234,6 +267,19 @@ class BridgeNode:
                                      time.monotonic())
             if sp is not None:
                 self.ros.publish_pilot(sp)
+
+    def on_external(self, msg) -> None:
+        """VISION_POSITION_ESTIMATE / ATT_POS_MOCAP / ODOMETRY / GPS_INPUT → navigation/external/*
+        (external_inputs.py converts, stamps, validates and counts)."""
+        sample = self.external.handle(msg, Clocks(time.monotonic(), time.time(), self.ros.ros_now()))
+        if sample is None:
+            return
+        if isinstance(sample, GnssSample):
+            self.ros.publish_external_gnss(sample)
+        elif isinstance(sample, OdometrySample):
+            self.ros.publish_external_odometry(sample)
+        else:
+            self.ros.publish_external_pose(sample)
 
     def on_offboard(self, msg) -> None:
         """SET_POSITION_TARGET_* / SET_ATTITUDE_TARGET → offboard/trajectory_setpoint (offboard.py);

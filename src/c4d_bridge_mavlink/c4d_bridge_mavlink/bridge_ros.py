@@ -20,6 +20,7 @@ from c4d_ros import manifest as topics
 from c4d_ros.drain import LatestSampler
 
 from .encoders import Snapshot
+from .external_inputs import GnssSample, OdometrySample, PoseSample
 from .fence import FenceItemsError, geofence_from_items, items_from_geofence
 from .health_report import FailsafeAnnouncer
 from .manual import PilotSetpoint
@@ -87,12 +88,15 @@ class RosSide:
     def __init__(self, node) -> None:
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+        from nav_msgs.msg import Odometry
         from rclpy.executors import SingleThreadedExecutor
         from sensor_msgs.msg import BatteryState, NavSatFix
         from std_msgs.msg import Header
 
         from c4d_interfaces.msg import (
             CaptureEvent,
+            EstimatorStatus,
             ExecutorStats,
             GuidanceSetpoint,
             MissionPlan,
@@ -115,7 +119,8 @@ class RosSide:
                 (NavSatFix, topics.P_GPS, self._on_gps), (MissionState, topics.MISSION_STATE, self._on_mission),
                 (MissionPlan, topics.MISSION_PLAN, self._on_plan), (DiagnosticStatus, topics.HEALTH_SUMMARY, self._on_health),
                 (CaptureEvent, topics.CAPTURES, self._on_capture), (ExecutorStats, topics.EXECUTOR_STATS, self._on_stats),
-                (DiagnosticArray, topics.P_HEALTH, self._on_sensors), (GeofenceMsg, topics.GEOFENCE, self._on_fence)):
+                (DiagnosticArray, topics.P_HEALTH, self._on_sensors), (GeofenceMsg, topics.GEOFENCE, self._on_fence),
+                (EstimatorStatus, topics.NAV_STATUS, self._on_nav_status)):
             node.create_subscription(msg_type, topic.name, callback, topic.qos)
         self.pub_heartbeat = node.create_publisher(Header, topics.GCS_HEARTBEAT.name, topics.GCS_HEARTBEAT.qos)
         self.pub_pilot = node.create_publisher(GuidanceSetpoint, topics.PILOT_SETPOINT.name, topics.PILOT_SETPOINT.qos)
@@ -124,6 +129,13 @@ class RosSide:
         node.create_subscription(GuidanceSetpoint, topics.OFFBOARD_SETPOINT.name, self._on_offboard,
                                  topics.OFFBOARD_SETPOINT.qos)
         self.pub_stats = node.create_publisher(DiagnosticArray, topics.LINK_STATS.name, topics.LINK_STATS.qos)
+        # MAVLink position inputs (external_inputs.py); created always (the manifest names the bridge a producer)
+        self.pub_ext_pose = node.create_publisher(PoseWithCovarianceStamped, topics.EXTERNAL_POSE.name,
+                                                  topics.EXTERNAL_POSE.qos)
+        self.pub_ext_odometry = node.create_publisher(Odometry, topics.EXTERNAL_ODOMETRY.name, topics.EXTERNAL_ODOMETRY.qos)
+        self.pub_ext_gnss = node.create_publisher(NavSatFix, topics.EXTERNAL_GNSS.name, topics.EXTERNAL_GNSS.qos)
+        self.PoseWithCovarianceStamped, self.Odometry, self.NavSatFix = PoseWithCovarianceStamped, Odometry, NavSatFix
+        self.external_frame_id = "odom"
         self.vehicle = node.create_client(VehicleCommand, topics.VEHICLE_COMMAND.name)
         self.upload = node.create_client(UploadMission, topics.MISSION_UPLOAD.name)
         self.control = node.create_client(MissionControl, topics.MISSION_CONTROL.name)
@@ -164,6 +176,10 @@ class RosSide:
             snap.angular_velocity = (s.angular_velocity.x, s.angular_velocity.y, s.angular_velocity.z)
             snap.valid_attitude = bool(s.valid & VehicleState.VALID_ATTITUDE)
             snap.valid_position = bool(s.valid & VehicleState.VALID_POSITION_XY)
+            nav, cov = snap.navigation, s.position_covariance
+            nav.state_heard, nav.valid = True, s.valid
+            nav.sigma_h = math.sqrt(0.5 * (cov[0] + cov[4])) if cov[0] > 0 and cov[4] > 0 else math.nan
+            nav.sigma_v = math.sqrt(cov[8]) if cov[8] > 0 else math.nan
             q = s.orientation
             snap.orientation = (q.w, q.x, q.y, q.z) if snap.valid_attitude else None
             if s.valid & VehicleState.VALID_GLOBAL:
@@ -200,6 +216,12 @@ class RosSide:
         s = self.snapshot
         s.armed, s.flight_mode, s.nav_state, s.landed_state = msg.armed, msg.flight_mode, msg.nav_state, msg.landed_state
         s.status_known = True
+
+    def _on_nav_status(self, msg) -> None:
+        """navigation/status: the fused sources and the GNSS integrity verdict (ESTIMATOR_STATUS)."""
+        nav = self.snapshot.navigation
+        nav.status_heard, nav.horizontal_source, nav.height_source = True, msg.horizontal_source, msg.height_source
+        nav.gnss_state, nav.gnss_score = msg.gnss.state, msg.gnss.score
 
     def _on_offboard(self, msg) -> None:
         """guidance/offboard (the gateway's validated stream): echoed as POSITION_TARGET_LOCAL_NED."""
@@ -308,7 +330,7 @@ class RosSide:
         h.frame_id = "gcs"
         self.pub_heartbeat.publish(h)
 
-    def publish_link_stats(self, router, schedulers, link, now: float, offboard=None) -> None:
+    def publish_link_stats(self, router, schedulers, link, now: float, offboard=None, external=None) -> None:
         from diagnostic_msgs.msg import KeyValue
 
         array = self.DiagnosticArray()
@@ -323,6 +345,12 @@ class RosSide:
             array.status.append(status_t(level=status_t.OK, name="bridge/offboard", hardware_id="mavlink",
                                          message=f"{offboard.accepted} setpoints, {offboard.rejected.total()} dropped",
                                          values=[KeyValue(key=k, value=str(v)) for k, v in counts.items()]))
+        if external is not None:  # external_inputs.ExternalInputs: position inputs forwarded / dropped per reason
+            counts = external.stats()
+            array.status.append(status_t(level=status_t.OK, name="bridge/external", hardware_id="mavlink",
+                                         message=f"{external.accepted.total()} position inputs, "
+                                                 f"{external.rejected.total()} dropped",
+                                         values=[KeyValue(key=k, value=v) for k, v in counts.items()]))
         for name, endpoint in router.endpoints.items():
             st, ls = endpoint.stats, schedulers[name].link_stats(now)
             worst = max((r.max_delay_ratio for r in schedulers[name].stream_stats()), default=0.0)
@@ -479,6 +507,52 @@ class RosSide:
         out = target_to_msg(target)
         out.header.stamp = self.node.get_clock().now().to_msg()
         self.pub_offboard.publish(out)
+
+    def ros_now(self) -> float:
+        """The node's clock now [s] (sim time in a simulated graph): external samples are stamped on it."""
+        return self.node.get_clock().now().nanoseconds * 1e-9
+
+    def _header(self, header, stamp: float) -> None:
+        ns = max(0, int(round(stamp * 1e9)))
+        header.stamp.sec, header.stamp.nanosec = ns // 1_000_000_000, ns % 1_000_000_000
+        header.frame_id = self.external_frame_id
+
+    @staticmethod
+    def _fill_pose(pose, sample: PoseSample) -> None:
+        """geometry_msgs/PoseWithCovariance from a PoseSample."""
+        pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = sample.position
+        o = pose.pose.orientation
+        o.w, o.x, o.y, o.z = sample.orientation
+        pose.covariance = list(sample.covariance)
+
+    def publish_external_pose(self, sample: PoseSample) -> None:
+        """VISION_POSITION_ESTIMATE / ATT_POS_MOCAP → navigation/external/pose."""
+        out = self.PoseWithCovarianceStamped()
+        self._header(out.header, sample.stamp)
+        self._fill_pose(out.pose, sample)
+        self.pub_ext_pose.publish(out)
+
+    def publish_external_odometry(self, sample: OdometrySample) -> None:
+        """ODOMETRY → navigation/external/odometry (twist in base_link, FLU)."""
+        out = self.Odometry()
+        self._header(out.header, sample.pose.stamp)
+        out.child_frame_id = "base_link"
+        self._fill_pose(out.pose, sample.pose)
+        out.twist.twist.linear.x, out.twist.twist.linear.y, out.twist.twist.linear.z = sample.velocity
+        out.twist.twist.angular.x, out.twist.twist.angular.y, out.twist.twist.angular.z = sample.angular_velocity
+        out.twist.covariance = list(sample.twist_covariance)
+        self.pub_ext_odometry.publish(out)
+
+    def publish_external_gnss(self, sample: GnssSample) -> None:
+        """GPS_INPUT → navigation/external/gnss."""
+        out = self.NavSatFix()
+        self._header(out.header, sample.stamp)
+        out.header.frame_id = "gps"
+        out.status.status, out.status.service = sample.status, out.status.SERVICE_GPS
+        out.latitude, out.longitude, out.altitude = sample.latitude, sample.longitude, sample.altitude
+        out.position_covariance = list(sample.covariance)
+        out.position_covariance_type = sample.covariance_type
+        self.pub_ext_gnss.publish(out)
 
     def publish_pilot(self, sp: PilotSetpoint) -> None:
         """A pilot setpoint (manual.PilotInput) as guidance/pilot at the ATTITUDE or RATE level."""

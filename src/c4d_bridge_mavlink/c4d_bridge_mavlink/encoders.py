@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 from c4d_common import quat
 from c4d_common.vehicle import FailsafeAction, Landed, Mode, Nav
 
+from .estimator_status import NavigationView
+from .estimator_status import estimator_status as encode_estimator_status
 from .fence import FenceWatch, obstacle_distance, sector_distances
 from .frames import attitude_to_ned, compass_heading_deg, enu_to_ned, flu_to_frd, px4_custom_mode
 from .health_report import VehicleHealth, sensor_bits
@@ -71,6 +73,7 @@ class Snapshot:
     fence: FenceWatch = field(default_factory=FenceWatch)  # the fence in force vs the position (FENCE_STATUS)
     obstacles: tuple[tuple[float, float, float], ...] | None = None  # perceived: east, north, radius [m]
     obstacles_t: float = -math.inf  # monotonic time they were heard
+    navigation: NavigationView = field(default_factory=NavigationView)  # ESTIMATOR_STATUS's inputs
     extra: dict = field(default_factory=dict)
 
 
@@ -206,6 +209,11 @@ def obstacle_distances(s: Snapshot, now: float) -> M.MAVLink_obstacle_distance_m
         return None
     distances = sector_distances((s.position[0], s.position[1]), quat.yaw_of(s.orientation), s.obstacles)
     return obstacle_distance(int(now * 1e6), distances)
+
+
+def estimator_status(s: Snapshot, now: float) -> M.MAVLink_estimator_status_message | None:
+    """ESTIMATOR_STATUS from navigation/state + navigation/status (estimator_status.py)."""
+    return encode_estimator_status(s.navigation, max(0, int((now - s.boot_s) * 1e6)))
 
 
 def extended_sys_state(s: Snapshot) -> M.MAVLink_extended_sys_state_message:
