@@ -3,8 +3,12 @@
 Nominal state in ENU / FLU: p, v, q (body → world), b_g, b_a. Prediction integrates each IMU
 sample (strapdown: a = R(f − b_a) + g); the error covariance follows δṗ = δv,
 δv̇ = −[R(f − b_a)]×δθ − R δb_a, δθ̇ = −R δb_g (attitude error in the world frame), biases as
-random walks. Updates: GNSS position (latency compensated with the current velocity), barometric
-altitude (offset learnt at home), magnetometer heading. Static alignment (roll and pitch from
+random walks. Updates: a position measurement on any subset of the axes (GNSS, external pose,
+range height; NavigationFilter compares delayed ones with the state at their sample time), a yaw
+measurement (external heading), barometric altitude (offset learnt at home), magnetometer heading.
+Every correction is passed to `on_correction` (the filter's state history and GNSS journal).
+An IMU-only dead-reckoning shadow (`pi`, `vi`) is integrated alongside and never corrected: the
+GNSS integrity monitor compares fixes with it. Static alignment (roll and pitch from
 gravity, yaw from the magnetometer) starts the filter; home (the geodetic origin of the local
 frame) is the mean of the first GNSS fixes, taken at rest (the barometer offset is the mean
 barometric altitude over the same window). Each sensor is optional: without GNSS the position is flagged
@@ -16,6 +20,7 @@ filter is well conditioned with a unit quaternion as nominal attitude.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,7 +76,12 @@ class NavigationEkf:
         self.origin: GeoOrigin | None = None
         self.baro_offset: float | None = None
         self.t = 0.0
+        self.pi = np.zeros(3)  # dead-reckoning shadow: IMU-only integration, never corrected
+        self.vi = np.zeros(3)
+        self.on_correction: Callable[[np.ndarray], None] | None = None  # every update's δx (15,)
         self.last_gps = -math.inf
+        self.last_position = -math.inf  # last horizontal position fused (any source)
+        self.valid_until = -math.inf  # dead reckoning declared valid until then (after a source cut-off)
         self.last_mag = -math.inf
         self.rejected = {"gps": 0, "baro": 0, "mag": 0}
         self.resets = 0  # position resets to GNSS after an outage
@@ -124,6 +134,8 @@ class NavigationEkf:
         a = R @ f + np.array([0.0, 0.0, -GRAVITY])
         self.p += self.v * dt + 0.5 * a * dt * dt
         self.v += a * dt
+        self.pi += self.vi * dt + 0.5 * a * dt * dt
+        self.vi += a * dt
         self.q = quat.integrate(self.q, (float(w[0]), float(w[1]), float(w[2])), dt)
         self.accel_world, self.omega = a, w
         phi = np.eye(15)
@@ -164,48 +176,94 @@ class NavigationEkf:
         self.ba += dx[12:15]
         I_KH = np.eye(15) - K @ H
         self.P = I_KH @ self.P @ I_KH.T + K @ Rm @ K.T  # Joseph form: stays symmetric positive
+        if self.on_correction is not None:
+            self.on_correction(dx)
         return True
+
+    def gate_passes(self, rows: np.ndarray, innovation: np.ndarray, Rm: np.ndarray, gate: float) -> bool:
+        """Would a position measurement on `rows` (axis indices 0-2) pass the gate? Nothing is fused."""
+        S = self.P[np.ix_(rows, rows)] + Rm
+        return float(innovation @ np.linalg.solve(S, innovation)) <= gate * gate * len(innovation)
+
+    def update_position(self, rows: np.ndarray, innovation: np.ndarray, Rm: np.ndarray, gate: float | None) -> bool:
+        """Position measurement on the axes `rows` (e.g. [0, 1] horizontal, [2] height) with its
+        innovation (measurement − the state at its sample time) and covariance Rm [m²]."""
+        if not self.aligned:
+            return False
+        H = np.zeros((len(rows), 15))
+        H[np.arange(len(rows)), rows] = 1.0
+        return self._update(H, innovation, Rm, gate)
+
+    def update_yaw(self, innovation: float, variance: float, gate: float) -> bool:
+        """Heading measurement (e.g. the external source's yaw in map): innovation [rad], variance [rad²]."""
+        if not self.aligned:
+            return False
+        H = np.zeros((1, 15))
+        H[0, 8] = 1.0
+        ok = self._update(H, np.array([innovation]), np.array([[variance]]), gate)
+        if ok:
+            self.last_mag = self.t  # the heading is measured
+        return ok
+
+    def set_home(self, latitude: float, longitude: float, altitude: float) -> bool:
+        """Average the first fixes into home (the local frame's geodetic origin); True once set."""
+        if self.origin is not None:
+            return True
+        # home = mean of the first fixes (one fix alone carries its full noise into the frame)
+        self._home_fixes.append((latitude, longitude, altitude))
+        if len(self._home_fixes) < self.cfg.home_fixes:
+            return False
+        lat, lon, alt = (sum(c) / len(self._home_fixes) for c in zip(*self._home_fixes, strict=True))
+        self.origin = GeoOrigin(lat, lon, alt)
+        self._home_fixes.clear()
+        # home is set while the vehicle stands still where the fixes were taken: it is at 0
+        self.p[:] = 0.0
+        self.v[:] = 0.0
+        if self._home_baro:  # the barometer's offset is learnt over the same window
+            self.baro_offset = sum(self._home_baro) / len(self._home_baro)
+        return False
+
+    def learn_baro_offset(self, altitude: float) -> None:
+        """Without a GNSS home (configured origin, or no GNSS): the barometer's offset is the mean
+        barometric altitude of the first samples, taken where the estimate stands (at rest)."""
+        if self.baro_offset is None:
+            self._home_baro.append(altitude - float(self.p[2]))
+            if len(self._home_baro) >= self.cfg.home_fixes:
+                self.baro_offset = sum(self._home_baro) / len(self._home_baro)
 
     def update_gps(self, latitude: float, longitude: float, altitude: float, sigma_h: float, sigma_v: float,
                    age: float = 0.0) -> bool:
+        """A GNSS fix against the current state, its latency compensated with the current velocity
+        (the simple path, used without a state history); NavigationFilter fuses at sample time."""
         if self.origin is None:
-            # home = mean of the first fixes (one fix alone carries its full noise into the frame)
-            self._home_fixes.append((latitude, longitude, altitude))
-            if len(self._home_fixes) < self.cfg.home_fixes:
-                return False
-            lat, lon, alt = (sum(c) / len(self._home_fixes) for c in zip(*self._home_fixes, strict=True))
-            self.origin = GeoOrigin(lat, lon, alt)
-            self._home_fixes.clear()
-            # home is set while the vehicle stands still where the fixes were taken: it is at 0
-            self.p[:] = 0.0
-            self.v[:] = 0.0
-            if self._home_baro:  # the barometer's offset is learnt over the same window
-                self.baro_offset = sum(self._home_baro) / len(self._home_baro)
+            self.set_home(latitude, longitude, altitude)
             return False
         if not self.aligned:
             return False
         z = np.asarray(self.origin.to_enu(latitude, longitude, altitude)) + self.v * max(0.0, age)
-        H = np.zeros((3, 15))
-        H[:, 0:3] = np.eye(3)
         Rm = np.diag([sigma_h**2, sigma_h**2, sigma_v**2])
-        ok = self._update(H, z - self.p, Rm, self.cfg.gps_gate)
+        ok = self.update_position(np.arange(3), z - self.p, Rm, self.cfg.gps_gate)
         if ok:
-            self.last_gps = self.t
+            self.last_gps = self.last_position = self.t
         elif self.t - self.last_gps > self.cfg.gps_reset_after_s:
-            self._reset_position(z, Rm)
-            self.last_gps = self.t
+            self.reset_position(z, Rm)
+            self.last_gps = self.last_position = self.t
             ok = True
         else:
             self.rejected["gps"] += 1
         return ok
 
-    def _reset_position(self, z: np.ndarray, Rm: np.ndarray) -> None:
+    def reset_position(self, z: np.ndarray, Rm: np.ndarray) -> None:
         """GNSS is back after an outage and dead reckoning drifted beyond the gate: trust the fix
         (PX4's EKF does the same), restart the velocity from rest with a wide uncertainty so the
         next fixes re-estimate it, and drop the stale position/velocity correlations."""
         self.resets += 1
+        dx = np.zeros(15)
+        dx[0:3], dx[3:6] = z - self.p, -self.v
         self.p = z.copy()
         self.v[:] = 0.0
+        if self.on_correction is not None:
+            self.on_correction(dx)
         self.P[0:6, :] = 0.0
         self.P[:, 0:6] = 0.0
         self.P[0:3, 0:3] = Rm
@@ -253,7 +311,8 @@ class NavigationEkf:
     # ---------------------------------------------------------------- outputs
     @property
     def position_valid(self) -> bool:
-        return self.aligned and self.t - self.last_gps < self.cfg.position_valid_s and float(np.trace(self.P[0:3, 0:3])) < 27.0
+        recent = self.t - self.last_position < self.cfg.position_valid_s or self.t < self.valid_until
+        return self.aligned and recent and float(np.trace(self.P[0:3, 0:3])) < 27.0
 
     @property
     def heading_valid(self) -> bool:

@@ -11,29 +11,53 @@ keep coming, origin/global once home is set, terrain distance from a fresh range
 A missing sensor clears its flags; nothing stops. While the core reports the vehicle
 disarmed (vehicle/status), zero-velocity updates at 10 Hz keep a vehicle standing without GNSS
 from drifting; GNSS back after an outage resets the position if dead reckoning left the gate.
-Topic names and QoS: c4d_ros.manifest. Parameters: PARAMS below (all read-only).
+Issue 19 (docs/navigation.md): external pose inputs navigation/external/odometry (nav_msgs/Odometry)
+and navigation/external/pose (PoseWithCovarianceStamped) — a flood is rate-limited on the raw
+message's stamp before it is deserialised —, fixes from navigation/external/gnss when
+`gnss_input: external`; primary / secondary sources per axis group; navigation/status
+(EstimatorStatus) at 5 Hz and at once on a change (sources, switches, external health, GNSS verdict).
+Topic names and QoS: c4d_ros.manifest. Parameters: PARAMS below (all read-only); a string
+parameter outside its choices, or a partial geodetic origin: one line, exit 2.
 """
 
 from __future__ import annotations
 
 import math
+import struct
 import sys
 from collections.abc import Callable
 
 import numpy as np
-from geometry_msgs.msg import PoseStamped, TransformStamped, Vector3
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TransformStamped, Vector3
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, Range
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
 
-from c4d_interfaces.msg import VehicleState, VehicleStatus
+from c4d_interfaces.msg import EstimatorStatus, GnssIntegrity, VehicleState, VehicleStatus
 from c4d_ros import cdr, gc_policy, node_runtime
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
-from c4d_ros.manifest import NAV_ODOMETRY, NAV_POSE, NAV_STATE, P_BARO, P_GPS, P_IMU, P_MAG, P_RANGE_DOWN, STATUS
+from c4d_ros.manifest import (
+    EXTERNAL_GNSS,
+    EXTERNAL_ODOMETRY,
+    EXTERNAL_POSE,
+    NAV_ODOMETRY,
+    NAV_POSE,
+    NAV_STATE,
+    NAV_STATUS,
+    P_BARO,
+    P_GPS,
+    P_IMU,
+    P_MAG,
+    P_RANGE_DOWN,
+    STATUS,
+)
 from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.stamps import stamp_to_s
 
 from .ekf import EkfConfig, NavigationEkf, rotation_matrix
-from .navigation_filter import NavigationFilter
+from .external_pose import ExternalConfig, ExternalSample, Rejection
+from .navigation_filter import NavigationConfig, NavigationFilter
+from .source_selection import HEIGHT_CHOICES, HORIZONTAL_CHOICES, NAMES
 
 NAME = "navigation"
 PARAMS = {
@@ -42,7 +66,96 @@ PARAMS = {
     "rt_priority": node_runtime.RT_PRIORITY,
     "events_executor": Spec(True, "spin with rclpy's EventsExecutor (less CPU) instead of the default executor [bool]",
                             read_only=True),
+    # --- sources (issue 19, docs/navigation.md) ---
+    "gnss_input": Spec("perception", "GNSS fixes from [perception | external]: perception/gps or navigation/external/gnss",
+                       read_only=True),
+    "horizontal_primary": Spec("gnss", "horizontal position source [gnss | external]", read_only=True),
+    "horizontal_secondary": Spec("external", "horizontal source when the primary is lost [external | gnss | none]",
+                                 read_only=True),
+    "height_primary": Spec("baro", "height source [baro | gnss | external | range]", read_only=True),
+    "height_secondary": Spec("none", "height source when the primary is lost [baro | gnss | external | range | none]",
+                             read_only=True),
+    "source_timeout_s": Spec(1.0, "no sample of the active source fused this long: lost, switch [s]", 0.05, 60.0,
+                             read_only=True),
+    "source_recovery_s": Spec(5.0, "the primary healthy this long: back to it [s]", 0.0, 600.0, read_only=True),
+    "switch_blend_s": Spec(3.0, "time constant of the switch offset's decay (no step at a switch) [s]", 0.1, 600.0,
+                           read_only=True),
+    "external_frame_ids": Spec(["odom"], "accepted frame_id of external poses [string list]", read_only=True),
+    "external_max_age_s": Spec(0.5, "older external samples (sample time vs IMU) are stale [s]", 0.01, 1.0,
+                               read_only=True),
+    "external_max_rate_hz": Spec(250.0, "external samples above this rate are dropped [Hz]", 1.0, 1000.0,
+                                 read_only=True),
+    "external_position_sigma_m": Spec(0.05, "external position 1σ when the message's covariance is all zero [m]",
+                                      0.001, 100.0, read_only=True),
+    "external_yaw_sigma_deg": Spec(2.0, "external yaw 1σ when the message's covariance is all zero [deg]", 0.01, 180.0,
+                                   read_only=True),
+    "external_gate": Spec(5.0, "innovation gate of external samples [σ]", 1.0, 100.0, read_only=True),
+    "external_alignment": Spec("estimate", "external frame in map [estimate | configured]", read_only=True),
+    "external_yaw_offset_deg": Spec(0.0, "configured yaw of the external frame in map (ENU) [deg]", -180.0, 180.0,
+                                    read_only=True),
+    "external_origin_m": Spec([0.0, 0.0, 0.0], "configured origin of the external frame in map [m, m, m]",
+                              read_only=True),
+    "external_fuse_yaw": Spec(False, "fuse the external yaw as a heading measurement (indoors) [bool]",
+                              read_only=True),
+    "origin_latitude_deg": Spec(math.nan, "configured geodetic origin of map [deg]; NaN: home from GNSS",
+                                read_only=True),
+    "origin_longitude_deg": Spec(math.nan, "configured geodetic origin of map [deg]; NaN: home from GNSS",
+                                 read_only=True),
+    "origin_altitude_m": Spec(math.nan, "configured geodetic origin of map, AMSL [m]; NaN: home from GNSS",
+                              read_only=True),
+    "dead_reckoning_valid_s": Spec(10.0, "position kept valid this long after a SPOOFED GNSS cut-off [s]", 0.0, 120.0,
+                                   read_only=True),
 }
+STATUS_PERIOD_S = 0.2  # navigation/status at 5 Hz (+ at once on a change)
+STATUS_CHECK_EVERY = 10  # IMU samples between change checks (50 Hz at 500 Hz)
+STAMP = struct.Struct("<iI")  # header.stamp right after the 4-byte CDR encapsulation (little endian)
+REJECTION_FIELDS = {r: f"external_rejected_{r.value}" for r in Rejection}
+
+
+def _choice(params: dict, name: str, choices: tuple[str, ...]) -> int:
+    value = params[name]
+    if value not in choices:
+        raise ComponentError(f"parameter '{name}': {value!r} is not one of {', '.join(choices)}")
+    return NAMES[value]
+
+
+def navigation_config(params: dict) -> NavigationConfig:
+    """The filter's configuration from the parameters; ComponentError (one line) for a bad value."""
+    if params["gnss_input"] not in ("perception", "external"):
+        raise ComponentError(f"parameter 'gnss_input': {params['gnss_input']!r} is not one of perception, external")
+    if params["external_alignment"] not in ("estimate", "configured"):
+        raise ComponentError(f"parameter 'external_alignment': {params['external_alignment']!r} is not one of "
+                             "estimate, configured")
+    origin_m = list(params["external_origin_m"])
+    if len(origin_m) != 3 or not all(math.isfinite(x) for x in origin_m):
+        raise ComponentError("parameter 'external_origin_m': needs 3 finite values")
+    frames = tuple(params["external_frame_ids"])
+    if not frames or not all(frames):
+        raise ComponentError("parameter 'external_frame_ids': needs at least one non-empty frame id")
+    geo = (params["origin_latitude_deg"], params["origin_longitude_deg"], params["origin_altitude_m"])
+    nan = [math.isnan(x) for x in geo]
+    if any(nan) and not all(nan):
+        raise ComponentError("parameters 'origin_latitude_deg', 'origin_longitude_deg', 'origin_altitude_m': "
+                             "all three or none (NaN)")
+    if not any(nan) and not (abs(geo[0]) <= 90.0 and abs(geo[1]) <= 180.0 and math.isfinite(geo[2])):
+        raise ComponentError(f"parameter 'origin_latitude_deg' / 'origin_longitude_deg': {geo[0]}, {geo[1]} "
+                             "outside [-90, 90] / [-180, 180]")
+    h1 = _choice(params, "horizontal_primary", HORIZONTAL_CHOICES)
+    h2 = _choice(params, "horizontal_secondary", (*HORIZONTAL_CHOICES, "none"))
+    z1 = _choice(params, "height_primary", HEIGHT_CHOICES)
+    z2 = _choice(params, "height_secondary", (*HEIGHT_CHOICES, "none"))
+    external = ExternalConfig(frame_ids=frames, max_age_s=params["external_max_age_s"],
+                              max_rate_hz=params["external_max_rate_hz"],
+                              position_sigma_m=params["external_position_sigma_m"],
+                              yaw_sigma_rad=math.radians(params["external_yaw_sigma_deg"]))
+    return NavigationConfig(
+        horizontal_primary=h1, horizontal_secondary=h2 if h2 != h1 else 0, height_primary=z1,
+        height_secondary=z2 if z2 != z1 else 0, source_timeout_s=params["source_timeout_s"],
+        source_recovery_s=params["source_recovery_s"], switch_blend_s=params["switch_blend_s"], external=external,
+        external_gate=params["external_gate"], external_alignment=params["external_alignment"],
+        external_yaw_offset=math.radians(params["external_yaw_offset_deg"]),
+        external_origin=(origin_m[0], origin_m[1], origin_m[2]), external_fuse_yaw=bool(params["external_fuse_yaw"]),
+        origin=None if all(nan) else geo, dead_reckoning_valid_s=params["dead_reckoning_valid_s"])
 LOG_PERIOD_S = 5.0
 ALWAYS_VALID = (VehicleState.VALID_ATTITUDE | VehicleState.VALID_ANGULAR_VELOCITY | VehicleState.VALID_ACCELERATION
                 | VehicleState.VALID_ANGULAR_ACCELERATION)
@@ -76,10 +189,17 @@ def tf_sender(node) -> Callable[[Odometry], None] | None:
 class NavigationNode:
     """Maps the perception topics onto NavigationFilter and publishes its estimate."""
 
-    def __init__(self, node, odometry_rate_hz: float, mag_declination_deg: float) -> None:
+    def __init__(self, node, odometry_rate_hz: float, mag_declination_deg: float,
+                 config: NavigationConfig | None = None, gnss_input: str = "perception") -> None:
         self.node = node
-        self.filter = NavigationFilter(NavigationEkf(EkfConfig(mag_declination=math.radians(mag_declination_deg))))
+        self.filter = NavigationFilter(NavigationEkf(EkfConfig(mag_declination=math.radians(mag_declination_deg))),
+                                       config)
         self.ekf = self.filter.ekf
+        self.gnss_external = gnss_input == "external"
+        self.status_key: tuple[object, ...] | None = None
+        self.status_t = -math.inf
+        self.imu_stamp = (0, 0)
+        self.pub_status = node.create_publisher(EstimatorStatus, NAV_STATUS.name, NAV_STATUS.qos)
         self.odometry_period = 1.0 / odometry_rate_hz - 1e-6
         self.odometry_t = -math.inf
         self.pub_state = node.create_publisher(VehicleState, NAV_STATE.name, NAV_STATE.qos)
@@ -89,7 +209,12 @@ class NavigationNode:
         node.create_timer(LOG_PERIOD_S, self.log_status)
         gc_policy.install(node)  # 500 Hz callbacks: no automatic full collection (c4d_ros.gc_policy)
         node.create_subscription(Imu, P_IMU.name, self.on_imu, P_IMU.qos, raw=True)  # 500 Hz: serialized (c4d_ros.cdr)
-        node.create_subscription(NavSatFix, P_GPS.name, self.on_gps, P_GPS.qos)
+        node.create_subscription(NavSatFix, P_GPS.name, lambda m: self.on_gps(m, False), P_GPS.qos)
+        node.create_subscription(NavSatFix, EXTERNAL_GNSS.name, lambda m: self.on_gps(m, True), EXTERNAL_GNSS.qos)
+        node.create_subscription(Odometry, EXTERNAL_ODOMETRY.name, lambda raw: self.on_external(raw, Odometry),
+                                 EXTERNAL_ODOMETRY.qos, raw=True)
+        node.create_subscription(PoseWithCovarianceStamped, EXTERNAL_POSE.name,
+                                 lambda raw: self.on_external(raw, PoseWithCovarianceStamped), EXTERNAL_POSE.qos, raw=True)
         node.create_subscription(FluidPressure, P_BARO.name, self.on_baro, P_BARO.qos)
         node.create_subscription(MagneticField, P_MAG.name, self.on_mag, P_MAG.qos)
         node.create_subscription(Range, P_RANGE_DOWN.name, self.on_range, P_RANGE_DOWN.qos)
@@ -102,12 +227,37 @@ class NavigationNode:
         f = msg.magnetic_field
         self.filter.magnetometer((f.x, f.y, f.z))
 
-    def on_gps(self, msg: NavSatFix) -> None:
+    def on_gps(self, msg: NavSatFix, external: bool) -> None:
+        if external != self.gnss_external or msg.status.status < NavSatStatus.STATUS_FIX:
+            return
         cov = msg.position_covariance
         self.filter.gnss(msg.latitude, msg.longitude, msg.altitude, cov[0], cov[8], stamp_to_s(msg.header.stamp))
 
+    def on_external(self, raw: bytes, kind: type) -> None:
+        """An external pose: rate-limited on its stamp before deserialising (a 1 kHz flood costs little),
+        then validated and fused by the filter; a malformed message is counted as invalid."""
+        validator = self.filter.validator
+        try:
+            sec, nanosec = STAMP.unpack_from(raw, 4)
+        except struct.error:
+            validator.counts[Rejection.INVALID] += 1
+            return
+        if validator.rate_limited(sec + nanosec * 1e-9):
+            return
+        try:
+            msg = deserialize_message(raw, kind)
+        except Exception:  # whatever the middleware raises for bytes it cannot read: counted
+            validator.counts[Rejection.INVALID] += 1
+            return
+        pose = msg.pose.pose
+        p, o = pose.position, pose.orientation
+        self.filter.external(ExternalSample(
+            t=stamp_to_s(msg.header.stamp), position=np.array([p.x, p.y, p.z]), quaternion=(o.w, o.x, o.y, o.z),
+            covariance=np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6), frame_id=msg.header.frame_id,
+            child_frame_id=msg.child_frame_id if kind is Odometry else "base_link"))
+
     def on_baro(self, msg: FluidPressure) -> None:
-        self.ekf.update_baro(msg.fluid_pressure)
+        self.filter.baro(msg.fluid_pressure, stamp_to_s(msg.header.stamp))
 
     def on_range(self, msg: Range) -> None:
         self.filter.range_down(msg.range, stamp_to_s(msg.header.stamp))
@@ -117,7 +267,13 @@ class NavigationNode:
         sec, nanosec = v[1], v[2]
         t = sec + nanosec * 1e-9
         if self.filter.imu(t, v[cdr.IMU_GYRO], v[cdr.IMU_ACCEL]):
+            self.imu_stamp = (sec, nanosec)
             self.pub_state.publish(self.state_cdr(sec, nanosec, t))
+            if self.filter.imu_count % STATUS_CHECK_EVERY == 0:
+                key = self.filter.status_key()
+                if key != self.status_key or t - self.status_t >= STATUS_PERIOD_S:
+                    self.status_key, self.status_t = key, t
+                    self.pub_status.publish(self.status_msg())
             if t - self.odometry_t >= self.odometry_period:
                 self.odometry_t = t
                 odometry = self.odometry_msg(sec, nanosec)
@@ -153,7 +309,36 @@ class NavigationNode:
             *ekf.accel_world.tolist(), qx, qy, qz, qw, *filt.omega.tolist(), *filt.alpha.tolist(),
             *P[0:3, 0:3].ravel().tolist(), *P[3:6, 3:6].ravel().tolist(), *P[6:9, 6:9].ravel().tolist(),
             *ekf.bg.tolist(), *ekf.ba.tolist(), terrain, *origin, *geodetic,
-            VehicleState.SOURCE_GNSS if ekf.position_valid else VehicleState.SOURCE_NONE, VehicleState.SOURCE_BARO)
+            filt.horizontal.fusing(t), filt.height.fusing(t))
+
+    def status_msg(self) -> EstimatorStatus:
+        """navigation/status from the filter's status (stamped with the IMU sample time)."""
+        s, cfg = self.filter.status(), self.filter.cfg
+        msg = EstimatorStatus()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = self.imu_stamp
+        msg.header.frame_id = "map"
+        msg.horizontal_source, msg.height_source = s.horizontal_source, s.height_source
+        msg.horizontal_primary, msg.horizontal_secondary = cfg.horizontal_primary, cfg.horizontal_secondary
+        msg.height_primary, msg.height_secondary = cfg.height_primary, cfg.height_secondary
+        msg.source_switches, msg.last_switch_step_m, msg.last_switch_age_s = (
+            s.source_switches, s.last_switch_step_m, s.last_switch_age_s)
+        msg.external_healthy, msg.external_aligned = s.external_healthy, s.external_aligned
+        msg.external_age_s, msg.external_rate_hz, msg.external_latency_s = (
+            s.external_age_s, s.external_rate_hz, s.external_latency_s)
+        msg.external_yaw_offset_deg = s.external_yaw_offset_deg
+        msg.external_origin = Vector3(x=float(s.external_origin[0]), y=float(s.external_origin[1]),
+                                      z=float(s.external_origin[2]))
+        msg.external_fused = s.external_fused
+        for reason, name in REJECTION_FIELDS.items():
+            setattr(msg, name, s.rejected[reason])
+        g, v = GnssIntegrity(), s.gnss
+        g.state, g.score, g.alarms, g.warnings = int(v.state), v.score, int(v.alarms), int(v.warnings)
+        g.innovation_nis, g.jump_m, g.inertial_mismatch_m, g.drift_cusum = (
+            v.innovation_nis, v.jump_m, v.inertial_mismatch_m, v.drift_cusum)
+        g.external_distance_m, g.fix_rate_hz, g.accuracy_ratio, g.alarm_age_s = (
+            v.external_distance_m, v.fix_rate_hz, v.accuracy_ratio, v.alarm_age_s)
+        msg.gnss = g
+        return msg
 
     def odometry_msg(self, sec: int, nanosec: int) -> Odometry:
         ekf, odom = self.ekf, Odometry()
@@ -174,7 +359,8 @@ class NavigationNode:
         ekf = self.ekf
         self.node.get_logger().info(
             f"aligned {ekf.aligned}, home {'set' if ekf.origin else 'pending'}, position valid {ekf.position_valid}, "
-            f"heading valid {ekf.heading_valid}, rejected {ekf.rejected}, p = {[round(float(x), 2) for x in ekf.p]}")
+            f"heading valid {ekf.heading_valid}, rejected {ekf.rejected}, p = {[round(float(x), 2) for x in ekf.p]}, "
+            f"sources {self.filter.status_key()}")
 
 
 def component(rclpy, host: Host) -> SpunNode:
@@ -185,7 +371,13 @@ def component(rclpy, host: Host) -> SpunNode:
     except ParameterError as exc:
         node.destroy_node()
         raise ComponentError(str(exc)) from None
-    owner = NavigationNode(node, params["odometry_rate_hz"], params["mag_declination_deg"])
+    try:
+        config = navigation_config(params)
+    except ComponentError:
+        node.destroy_node()
+        raise
+    owner = NavigationNode(node, params["odometry_rate_hz"], params["mag_declination_deg"], config,
+                           params["gnss_input"])
     return SpunNode(NAME, node, bool(params["events_executor"]), params["rt_priority"], owner)
 
 
