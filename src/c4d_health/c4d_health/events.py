@@ -4,8 +4,17 @@ What: `evaluate(snapshot, policy, t)` turns a `HealthSnapshot` (the latest of ev
 health node hears: dead and stalled nodes, GNSS health, the estimate, battery, the fence in
 force (geofence/active: inclusion polygon, ceiling, distance, exclusion zones, and the floor while
 flying), the ground link, executor overruns, core stalls, the offboard stream, the perceived
-obstacles) into the active events, each with a detail for people: `{Event.BATTERY_LOW: "28%"}`.
-The `FailsafeArbiter` (policy.py) then decides the action.
+obstacles, the navigation's horizontal source and GNSS integrity verdict (navigation/status)) into
+the active events, each with a detail for people: `{Event.BATTERY_LOW: "28%"}`. The
+`FailsafeArbiter` (policy.py) then decides the action.
+
+GNSS integrity: a SPOOFED / JAMMED verdict is `gnss_spoofed` / `gnss_jammed` when no other healthy
+horizontal source is in use (the position rests on dead reckoning or on the distrusted GNSS: the
+policy holds, then lands), and `gnss_spoofed_switched` / `gnss_jammed_switched` when the
+navigation flies on a healthy external source (it already switched: the policy warns). Two events,
+not one with two actions, so that each case keeps the policy's plain event → rule form. For the
+same reason `gps_loss` does not fire while a healthy non-GNSS source is in use (GNSS disabled from
+boot with an external pose is a valid configuration).
 
 Why a pure function over a snapshot: every failsafe condition is tested without DDS
 (test/test_events.py), and the node only copies messages into the snapshot. Decisions use the
@@ -47,6 +56,34 @@ class Estimate:
     home: GeoOrigin | None  # the estimator's origin; None while it is not set
 
 
+# VehicleState.SOURCE_* and GnssIntegrity.STATE_* (test_events checks the values against c4d_interfaces)
+SOURCE_NONE, SOURCE_GNSS, SOURCE_EXTERNAL = 0, 1, 2
+GNSS_SPOOFED, GNSS_JAMMED = 3, 4
+SOURCE_NAMES = {SOURCE_NONE: "dead reckoning", SOURCE_GNSS: "GNSS", SOURCE_EXTERNAL: "external"}
+
+
+@dataclass(frozen=True)
+class NavigationStatus:
+    """What health needs of navigation/status: the horizontal source in use, the external input's
+    health and the GNSS integrity verdict (state, score, the tests in alarm as text)."""
+
+    horizontal_source: int  # SOURCE_*
+    external_healthy: bool
+    gnss_state: int  # GnssIntegrity.STATE_*
+    gnss_score: float = 0.0
+    gnss_alarms: str = ""  # e.g. "inertial, jump"
+
+    @property
+    def backed(self) -> bool:
+        """The horizontal position is fused from a healthy source other than GNSS (only the external
+        pose is one today): losing or distrusting GNSS does not take the position away."""
+        return self.horizontal_source == SOURCE_EXTERNAL and self.external_healthy
+
+    @property
+    def source_name(self) -> str:
+        return SOURCE_NAMES.get(self.horizontal_source, f"source {self.horizontal_source}")
+
+
 @dataclass(frozen=True)
 class LinkWatch:
     """The ground-link heartbeat topic and when it was last heard (None: never)."""
@@ -80,6 +117,7 @@ class HealthSnapshot:
     offboard: OffboardWatch | None = None  # None: the core's mode not known yet
     flying: bool = False  # in the air, not taking off or landing: the fence's floor applies
     obstacles: tuple[Circle, ...] | None = None  # perception/surroundings (east, north, radius); None: none heard
+    navigation: NavigationStatus | None = None  # navigation/status; None: not heard (no GNSS integrity events)
 
 
 def nearest_obstacle(position: Point3, obstacles: tuple[Circle, ...]) -> float:
@@ -95,7 +133,8 @@ def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict
         active[Event.NODE_DEAD] = ", ".join(s.dead_nodes)
     if s.stalled_nodes:
         active[Event.NODE_STALLED] = ", ".join(s.stalled_nodes)
-    if s.gnss is not None and not s.gnss.ok:
+    backed = s.navigation is not None and s.navigation.backed
+    if s.gnss is not None and not s.gnss.ok and not backed:  # GNSS disabled + external pose is a valid setup
         active[Event.GPS_LOSS] = f"GNSS {s.gnss.message}"
     if s.estimate is not None and not (s.estimate.attitude_valid and s.estimate.position_xy_valid):
         active[Event.ESTIMATOR_INVALID] = "position or attitude estimate not valid"
@@ -125,4 +164,14 @@ def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict
                                                     f"{policy.obstacle_protection_radius_m:g} m)"
         elif distance < policy.obstacle_detection_range_m:
             active[Event.OBSTACLE_NEAR] = f"obstacle {distance:.1f} m away"
+    if s.navigation is not None and s.navigation.gnss_state in (GNSS_SPOOFED, GNSS_JAMMED):
+        nav = s.navigation
+        spoofed = nav.gnss_state == GNSS_SPOOFED
+        what = f"GNSS {'spoofed' if spoofed else 'jammed'} ({nav.gnss_alarms or 'alarm'}, score {nav.gnss_score:.1f})"
+        if backed:
+            active[Event.GNSS_SPOOFED_SWITCHED if spoofed else Event.GNSS_JAMMED_SWITCHED] = \
+                f"{what}; navigation on the {nav.source_name} source"
+        else:
+            active[Event.GNSS_SPOOFED if spoofed else Event.GNSS_JAMMED] = \
+                f"{what}; no other healthy horizontal source (on {nav.source_name})"
     return active

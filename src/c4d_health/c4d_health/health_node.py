@@ -11,7 +11,9 @@ tick: obstacle_near inside the detection range, obstacle_collision_risk inside t
 radius),
 ground link (a heartbeat topic, when `link_topic` is set), executor overruns and core stalls
 (gnc/executor_stats: core_stall.py), the offboard stream (guidance/offboard, sampled at the
-tick, silent for `offboard_loss_timeout_s` while the core is in OFFBOARD: offboard_loss); the
+tick, silent for `offboard_loss_timeout_s` while the core is in OFFBOARD: offboard_loss), the
+navigation's sources and GNSS integrity (navigation/status: gnss_spoofed / gnss_jammed without
+another healthy horizontal source, *_switched with one; gps_loss not while one is in use); the
 conditions are judged by events.py. Publishes `diagnostics`
 (DiagnosticArray, 1 Hz, one status per monitor) and `health/summary` (DiagnosticStatus: overall
 level, active events, failsafe action and reason, dead and stalled nodes). The failsafe policy
@@ -38,7 +40,16 @@ from c4d_common.geofence import Point3
 from c4d_common.plan import Geofence, PlanError
 from c4d_common.share import share_file
 from c4d_common.vehicle import CommandResult, Landed, Mode
-from c4d_interfaces.msg import ExecutorStats, GuidanceSetpoint, MissionState, Surroundings, VehicleState, VehicleStatus
+from c4d_interfaces.msg import (
+    EstimatorStatus,
+    ExecutorStats,
+    GnssIntegrity,
+    GuidanceSetpoint,
+    MissionState,
+    Surroundings,
+    VehicleState,
+    VehicleStatus,
+)
 from c4d_interfaces.msg import Geofence as GeofenceMsg
 from c4d_interfaces.srv import VehicleCommand
 from c4d_ros import manifest
@@ -49,7 +60,16 @@ from c4d_ros.plan_msgs import geofence_from_msg
 
 from .commands import FailsafeCommand, failsafe_command
 from .core_stall import CORE, CoreStallMonitor, CoreStallReport, StatsWindow
-from .events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, OffboardWatch, evaluate
+from .events import (
+    LINK_TIMEOUT_S,
+    Estimate,
+    GnssReport,
+    HealthSnapshot,
+    LinkWatch,
+    NavigationStatus,
+    OffboardWatch,
+    evaluate,
+)
 from .liveness import GraphPresence, LivenessMonitor, classify
 from .policy import Action, Event, FailsafeArbiter, FailsafePolicy, PolicyError
 
@@ -108,6 +128,18 @@ class HealthConfig:
                    GATEWAY[0] not in unwatched)
 
 
+GNSS_TESTS = {GnssIntegrity.TEST_INNOVATION: "innovation", GnssIntegrity.TEST_JUMP: "jump",
+              GnssIntegrity.TEST_INERTIAL: "inertial", GnssIntegrity.TEST_EXTERNAL: "external",
+              GnssIntegrity.TEST_LOSS: "loss", GnssIntegrity.TEST_DEGRADED: "degraded"}
+
+
+def navigation_of(msg: EstimatorStatus) -> NavigationStatus:
+    """The part of navigation/status that health judges."""
+    alarms = ", ".join(name for bit, name in GNSS_TESTS.items() if msg.gnss.alarms & bit)
+    return NavigationStatus(int(msg.horizontal_source), bool(msg.external_healthy), int(msg.gnss.state),
+                            float(msg.gnss.score), alarms)
+
+
 def estimate_of(msg: VehicleState) -> Estimate:
     """The part of navigation/state that health judges."""
     home = GeoOrigin(msg.origin.latitude, msg.origin.longitude, msg.origin.altitude) \
@@ -136,6 +168,7 @@ class HealthNode:
         self.armed = self.in_air = self.flying = False
         self.mode: Mode | None = None  # the core's, from vehicle/status
         self.gnss: GnssReport | None = None
+        self.navigation: NavigationStatus | None = None
         self.battery_soc: float | None = None
         self.geofence: Geofence | None = None
         self.overruns_total: int | None = None
@@ -172,6 +205,7 @@ class HealthNode:
                 (manifest.BATTERY, BatteryState, self._on_battery),
                 (manifest.GEOFENCE, GeofenceMsg, self._on_fence),
                 (manifest.EXECUTOR_STATS, ExecutorStats, self._on_stats),
+                (manifest.NAV_STATUS, EstimatorStatus, self._on_navigation_status),
                 (manifest.NAV_ODOMETRY, Odometry, None),
                 (manifest.MISSION_STATE, MissionState, None)):
             if handle is not None or topic in owners:
@@ -204,6 +238,9 @@ class HealthNode:
         for s in msg.status:
             if s.hardware_id == "gps":
                 self.gnss = GnssReport(s.level == DiagnosticStatus.OK, s.message)
+
+    def _on_navigation_status(self, msg: EstimatorStatus) -> None:
+        self.navigation = navigation_of(msg)
 
     def _on_battery(self, msg: BatteryState) -> None:
         self.battery_soc = float(msg.percentage)
@@ -245,7 +282,7 @@ class HealthNode:
             if around is not None else None
         return HealthSnapshot(self.dead, self.gnss, estimate_of(state) if state is not None else None, self.battery_soc,
                               self.geofence, link, self.new_overruns, self.stalled, self.core_stall_report,
-                              self._offboard_watch(t), self.flying, obstacles)
+                              self._offboard_watch(t), self.flying, obstacles, self.navigation)
 
     def _tick(self) -> None:
         t = self._now()

@@ -45,6 +45,13 @@ class Event(StrEnum):
     OFFBOARD_LOSS = "offboard_loss"  # in OFFBOARD, guidance/offboard silent for offboard_loss_timeout_s
     OBSTACLE_NEAR = "obstacle_near"  # a perceived obstacle inside the detection range (D3.3 §6.7: 2 m)
     OBSTACLE_COLLISION_RISK = "obstacle_collision_risk"  # inside the protection radius (0.5 m)
+    # GNSS integrity (navigation/status): the verdict with no other healthy horizontal source in use
+    # (the position rests on dead reckoning or on GNSS) ...
+    GNSS_SPOOFED = "gnss_spoofed"
+    GNSS_JAMMED = "gnss_jammed"
+    # ... and the same verdict while the navigation flies on another healthy source (it switched)
+    GNSS_SPOOFED_SWITCHED = "gnss_spoofed_switched"
+    GNSS_JAMMED_SWITCHED = "gnss_jammed_switched"
 
 
 EVENTS = tuple(e.value for e in Event)

@@ -9,7 +9,21 @@ from c4d_common.geodesy import GeoOrigin
 from c4d_common.geofence import BreachKind, LocalFence
 from c4d_common.plan import Geofence
 from c4d_health.core_stall import CoreStallReport
-from c4d_health.events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, OffboardWatch, evaluate
+from c4d_health.events import (
+    GNSS_JAMMED,
+    GNSS_SPOOFED,
+    LINK_TIMEOUT_S,
+    SOURCE_EXTERNAL,
+    SOURCE_GNSS,
+    SOURCE_NONE,
+    Estimate,
+    GnssReport,
+    HealthSnapshot,
+    LinkWatch,
+    NavigationStatus,
+    OffboardWatch,
+    evaluate,
+)
 from c4d_health.liveness import LivenessMonitor
 from c4d_health.policy import EVENTS, Event, FailsafePolicy
 
@@ -143,8 +157,11 @@ def test_events_come_in_event_order():
     everything = HealthSnapshot(("sim",), GnssReport(False, "lost"), replace(at(99.0, 0.0), attitude_valid=False), 0.1,
                                 Geofence(max_distance=15.0), LinkWatch("link", None), 1, ("core",),
                                 CoreStallReport("worst tick 30 ms, 14 skipped ticks", "3 stalls within 10 s"),
-                                OffboardWatch(True, T - 1.0), True, ((99.3, 0.0, 0.0),))
-    assert list(evaluate(everything, POLICY, T)) == [e for e in Event if e not in (Event.BATTERY_LOW, Event.OBSTACLE_NEAR)]
+                                OffboardWatch(True, T - 1.0), True, ((99.3, 0.0, 0.0),),
+                                NavigationStatus(SOURCE_GNSS, False, GNSS_SPOOFED))
+    exclusive = (Event.BATTERY_LOW, Event.OBSTACLE_NEAR, Event.GNSS_JAMMED, Event.GNSS_SPOOFED_SWITCHED,
+                 Event.GNSS_JAMMED_SWITCHED)  # each excluded by another one that is active
+    assert list(evaluate(everything, POLICY, T)) == [e for e in Event if e not in exclusive]
 
 
 def test_exclusion_zones_and_the_floor_of_the_fence_in_force():
@@ -174,3 +191,43 @@ def test_obstacle_near_and_collision_risk_from_the_perceived_obstacles():
     assert "obstacle_collision_risk" not in events(obstacles=(post,), estimate=no_fix)
     wide = replace(POLICY, obstacle_detection_range_m=5.0)
     assert list(evaluate(replace(HEALTHY, obstacles=(post,), estimate=at(1.0, 0.0)), wide, T)) == ["obstacle_near"]
+
+
+def test_navigation_constants_are_the_message_constants():
+    from c4d_health import events as ev
+    from c4d_interfaces.msg import GnssIntegrity, VehicleState
+    assert (ev.SOURCE_NONE, ev.SOURCE_GNSS, ev.SOURCE_EXTERNAL) == \
+        (VehicleState.SOURCE_NONE, VehicleState.SOURCE_GNSS, VehicleState.SOURCE_EXTERNAL)
+    assert (ev.GNSS_SPOOFED, ev.GNSS_JAMMED) == (GnssIntegrity.STATE_SPOOFED, GnssIntegrity.STATE_JAMMED)
+
+
+ON_GNSS = NavigationStatus(SOURCE_GNSS, external_healthy=False, gnss_state=1)
+ON_EXTERNAL = NavigationStatus(SOURCE_EXTERNAL, external_healthy=True, gnss_state=1)
+
+
+@pytest.mark.parametrize("state,event", [(GNSS_SPOOFED, "gnss_spoofed"), (GNSS_JAMMED, "gnss_jammed")])
+def test_gnss_integrity_events_depend_on_a_healthy_other_source(state, event):
+    alarm = replace(ON_GNSS, gnss_state=state, gnss_score=2.0, gnss_alarms="inertial")
+    assert events(navigation=alarm) == {event: f"GNSS {event[5:]} (inertial, score 2.0); no other healthy horizontal "
+                                               "source (on GNSS)"}
+    # dead reckoning (the navigation stopped fusing GNSS, nothing else): the same event
+    assert set(events(navigation=replace(alarm, horizontal_source=SOURCE_NONE))) == {event}
+    # an external source configured but unhealthy is no alternative
+    assert set(events(navigation=replace(alarm, horizontal_source=SOURCE_EXTERNAL, external_healthy=False))) == {event}
+    switched = replace(alarm, horizontal_source=SOURCE_EXTERNAL, external_healthy=True)
+    assert events(navigation=switched) == {f"{event}_switched": f"GNSS {event[5:]} (inertial, score 2.0); "
+                                                                "navigation on the external source"}
+
+
+def test_no_gnss_integrity_event_while_ok_suspect_or_unknown():
+    for state in (0, 1, 2):
+        assert events(navigation=replace(ON_GNSS, gnss_state=state)) == {}
+
+
+def test_gps_loss_not_while_a_healthy_non_gnss_source_is_in_use():
+    lost = GnssReport(False, "no fix")
+    assert events(gnss=lost, navigation=ON_EXTERNAL) == {}  # GNSS disabled from boot + external pose: valid
+    assert events(gnss=lost, navigation=ON_GNSS) == {"gps_loss": "GNSS no fix"}
+    assert events(gnss=lost, navigation=replace(ON_EXTERNAL, external_healthy=False)) == {"gps_loss": "GNSS no fix"}
+    assert events(gnss=lost, navigation=replace(ON_EXTERNAL, horizontal_source=SOURCE_NONE)) == {"gps_loss": "GNSS no fix"}
+    assert events(gnss=lost) == {"gps_loss": "GNSS no fix"}  # navigation/status not heard: as before

@@ -156,3 +156,21 @@ def test_obstacle_rules_and_thresholds():
                 {"obstacle_protection_radius_m": 0}, {"obstacle_detection_range_m": True}):
         with pytest.raises(PolicyError, match="0 < obstacle_protection_radius_m < obstacle_detection_range_m"):
             FailsafePolicy.from_dict({"events": {}, **bad})
+
+
+def test_gnss_integrity_rules_hold_then_land_without_an_alternative_and_warn_with_one():
+    assert POLICY.rules["gnss_spoofed"] == Rule(Action.HOLD, 1.0, True, Action.LAND, 3.0)
+    assert POLICY.rules["gnss_jammed"] == Rule(Action.HOLD, 2.0, True, Action.LAND, 10.0)
+    assert POLICY.rules["gnss_spoofed_switched"].action == POLICY.rules["gnss_jammed_switched"].action == Action.WARN
+    arbiter = FailsafeArbiter(POLICY)
+    spoofed = {"gnss_spoofed": "GNSS spoofed (inertial, score 1.3); no other healthy horizontal source (on GNSS)"}
+    assert arbiter.update(10.0, spoofed, in_air=True) == Action.NONE  # the status may precede the switch
+    assert arbiter.update(10.9, spoofed, in_air=True) == Action.NONE
+    assert arbiter.update(11.0, spoofed, in_air=True) == Action.HOLD
+    assert arbiter.update(13.9, spoofed, in_air=True) == Action.HOLD
+    assert arbiter.update(14.0, {}, in_air=True) == Action.LAND  # lands even if the verdict cleared meanwhile
+    switched = FailsafeArbiter(POLICY)
+    # the verdict comes first, the switch 0.5 s later: only a warning is latched
+    assert switched.update(0.0, spoofed, in_air=True) == Action.NONE
+    assert switched.update(0.5, {"gnss_spoofed_switched": "x"}, in_air=True) == Action.WARN
+    assert switched.update(60.0, {"gnss_spoofed_switched": "x"}, in_air=True) == Action.WARN
