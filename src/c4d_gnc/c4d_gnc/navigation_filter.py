@@ -40,6 +40,7 @@ DEFAULT_SIGMA_H_M, DEFAULT_SIGMA_V_M = 1.0, 2.0  # GNSS accuracy when a fix repo
 TICK_S = 0.2  # integrity monitor tick and source-switch evaluation period (5 Hz, IMU clock)
 HORIZONTAL, VERTICAL = np.array([0, 1]), np.array([2])
 JOURNAL_S = 60.0  # [s] GNSS corrections kept for an undo
+EXTERNAL_MATCH_S = 0.3  # [s] an external sample this close to a fix is compared with it (integrity monitor)
 
 
 @dataclass(frozen=True)
@@ -52,7 +53,7 @@ class NavigationConfig:
     height_secondary: int = NONE
     source_timeout_s: float = 1.0  # [s] no fused sample this long: the source is lost
     source_recovery_s: float = 5.0  # [s] the primary healthy this long: back to it
-    switch_blend_s: float = 3.0  # [s] time constant of the switch offset's decay
+    switch_blend_s: float = 10.0  # [s] time constant of the switch offset's decay
     external: ExternalConfig = field(default_factory=ExternalConfig)
     external_gate: float = 5.0  # [σ] innovation gate of external samples
     external_alignment: str = "estimate"  # estimate | configured
@@ -232,8 +233,7 @@ class NavigationFilter:
         if row is None or not self.ekf.aligned:
             return
         zz = np.array([z])
-        consistent = self.ekf.gate_passes(VERTICAL, zz - row[P][VERTICAL], np.array([[var]]), 5.0)
-        self.height.sample(source, t, consistent)
+        self.height.sample(source, t)
         if self.height.active == source and source not in self.height.blocked:
             if not self._fuse(self.height, source, VERTICAL, zz, row, np.array([[var]]), 5.0, t) and source == BARO:
                 self.ekf.rejected["baro"] += 1
@@ -266,9 +266,8 @@ class NavigationFilter:
         if not self.verdict.fuse:
             return
         Rh, gate = np.eye(2) * sigma_h**2, ekf.cfg.gps_gate
-        consistent = ekf.gate_passes(HORIZONTAL, z[0:2] - row[P][0:2], Rh, gate)
         if GNSS in self.horizontal.configured:
-            self.horizontal.sample(GNSS, stamp, consistent)
+            self.horizontal.sample(GNSS, stamp)
         if self.horizontal.active == GNSS:
             self._last_dx = None
             if self._fuse(self.horizontal, GNSS, HORIZONTAL, z[0:2], row, Rh, gate, stamp):
@@ -302,13 +301,13 @@ class NavigationFilter:
         return any(s != selector.active and selector.fresh(s, t) for s in selector.configured)
 
     def _external_at(self, t: float, row: np.ndarray) -> np.ndarray | None:
-        """The healthy external source's map position at t (moved by the estimate's velocity from its sample time)."""
+        """The healthy external source's map position at t: its last sample moved by the estimate's
+        displacement between the two sample times (from the history); None when older than EXTERNAL_MATCH_S."""
         if self._external_map is None or not self._external_consistent:
             return None
         te, pe = self._external_map
-        if abs(t - te) > self.cfg.source_timeout_s:
-            return None
-        return pe + row[V] * (t - te)
+        then = self.history.at(te) if abs(t - te) <= EXTERNAL_MATCH_S else None
+        return None if then is None else pe + row[P] - then[P]
 
     def _on_verdict(self, verdict: Verdict) -> None:
         """A new integrity verdict: block GNSS while SPOOFED and, on the transition, undo what it fused since the onset."""
@@ -372,7 +371,7 @@ class NavigationFilter:
             0.95 * self._external_latency + 0.05 * latency
         fused = rejected = False
         if EXTERNAL in self.horizontal.configured:
-            self.horizontal.sample(EXTERNAL, s.t, consistent)
+            self.horizontal.sample(EXTERNAL, s.t)
             if self.horizontal.active == EXTERNAL:
                 ok = self._fuse(self.horizontal, EXTERNAL, HORIZONTAL, z[0:2], row, R[0:2, 0:2], gate, s.t)
                 fused, rejected = fused or ok, rejected or not ok

@@ -78,7 +78,7 @@ PARAMS = {
     "source_timeout_s": Spec(1.0, "no sample of the active source fused this long: lost, switch [s]", 0.05, 60.0,
                              read_only=True),
     "source_recovery_s": Spec(5.0, "the primary healthy this long: back to it [s]", 0.0, 600.0, read_only=True),
-    "switch_blend_s": Spec(3.0, "time constant of the switch offset's decay (no step at a switch) [s]", 0.1, 600.0,
+    "switch_blend_s": Spec(10.0, "time constant of the switch offset's decay (no step at a switch) [s]", 0.1, 600.0,
                            read_only=True),
     "external_frame_ids": Spec(["odom"], "accepted frame_id of external poses [string list]", read_only=True),
     "external_max_age_s": Spec(0.5, "older external samples (sample time vs IMU) are stale [s]", 0.01, 1.0,

@@ -4,8 +4,11 @@ Parameters choose a primary and a secondary source (VehicleState.SOURCE_*). The 
 left when it is lost — no sample fused for `timeout_s` (a source whose samples the gate keeps
 rejecting is lost too) — or blocked (GNSS with a SPOOFED integrity verdict); the other configured
 source takes over if it delivered a valid sample within `timeout_s`. The filter returns to the
-primary once it has delivered valid samples consistent with the estimate (inside the gate)
-without a gap for `recovery_s`.
+primary once it has delivered valid samples without a gap for `recovery_s` (not their agreement
+with the estimate: that follows the secondary, whose bias would keep a good primary out for
+ever; the offset capture makes the return smooth whatever the disagreement). At start the
+primary has `recovery_s` to deliver before it counts as lost (GNSS needs its home fixes, an
+external source its alignment samples).
 
 No step at a switch: the new source's first sample captures the offset between the estimate and
 it (`offset = estimate − measurement`); the filter then fuses measurement + offset, and the offset
@@ -32,7 +35,7 @@ class SelectionConfig:
     secondary: int = NONE
     timeout_s: float = 1.0  # [s] no fused sample this long: the source is lost
     recovery_s: float = 5.0  # [s] the primary healthy this long: back to it
-    blend_s: float = 3.0  # [s] time constant the switch offset decays with
+    blend_s: float = 10.0  # [s] time constant the switch offset decays with
 
 
 class SourceSelector:
@@ -47,6 +50,7 @@ class SourceSelector:
         self.last_switch_t = math.nan
         self.last_step_m = 0.0
         self._offset_t = math.nan
+        self._start_t = math.nan
         self.last_fused: dict[int, float] = {}
         self._last_valid: dict[int, float] = {}
         self._healthy_since: dict[int, float] = {}
@@ -56,12 +60,9 @@ class SourceSelector:
     def configured(self) -> tuple[int, ...]:
         return tuple(s for s in (self.cfg.primary, self.cfg.secondary) if s != NONE)
 
-    def sample(self, source: int, t: float, consistent: bool) -> None:
-        """A valid sample of `source` at sample time t; `consistent`: inside the gate of the estimate."""
-        last = self._last_valid.get(source, -math.inf)
-        if not consistent or t - last > self.cfg.timeout_s:
-            self._healthy_since[source] = t if consistent else math.inf
-        elif source not in self._healthy_since:
+    def sample(self, source: int, t: float) -> None:
+        """A valid sample of `source` at sample time t."""
+        if t - self._last_valid.get(source, -math.inf) > self.cfg.timeout_s:
             self._healthy_since[source] = t
         self._last_valid[source] = t
 
@@ -80,6 +81,10 @@ class SourceSelector:
     def update(self, t: float) -> bool:
         """Switch if due at time t; True when the active source changed."""
         cfg = self.cfg
+        if math.isnan(self._start_t):
+            self._start_t = t
+        if t - self._start_t < cfg.recovery_s and self.active not in self.last_fused and self.switches == 0:
+            return False  # start: the primary has recovery_s to come up
         lost = self.active in self.blocked or t - self.last_fused.get(self.active, -math.inf) > cfg.timeout_s
         if lost:
             for candidate in self.configured:
