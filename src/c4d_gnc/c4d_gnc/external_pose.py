@@ -17,6 +17,7 @@ from enum import Enum
 import numpy as np
 
 FUTURE_TOLERANCE_S = 0.005  # a sample may be stamped this far ahead of the newest IMU sample (clock jitter)
+RATE_JITTER = 0.9  # a sample closer than 0.9 / max_rate_hz to the last accepted one is over the rate (stamp jitter)
 
 
 class Rejection(Enum):
@@ -53,7 +54,7 @@ class ExternalSample:
 class ExternalConfig:
     frame_ids: tuple[str, ...] = ("odom",)
     max_age_s: float = 0.5  # [s] older samples are stale
-    max_rate_hz: float = 250.0  # [Hz] samples closer than 1/rate (sample time) to the last accepted one are dropped
+    max_rate_hz: float = 250.0  # [Hz] samples closer than 0.9/rate (sample time) to the last accepted one are dropped
     position_sigma_m: float = 0.05  # [m] σ used when the message's covariance is all zero
     yaw_sigma_rad: float = math.radians(2.0)  # [rad] σ used when the message's covariance is all zero
 
@@ -75,7 +76,7 @@ class ExternalValidator:
     def rate_limited(self, t: float) -> bool:
         """True (and counted) when a sample stamped t comes too soon after the last accepted one.
         Cheap enough to run on the raw message's stamp before deserialising it."""
-        if t - self.last_accepted_t < 1.0 / self.config.max_rate_hz and t >= self.last_accepted_t:
+        if t - self.last_accepted_t < RATE_JITTER / self.config.max_rate_hz and t >= self.last_accepted_t:
             self.counts[Rejection.RATE] += 1
             return True
         return False
@@ -98,7 +99,7 @@ class ExternalValidator:
             return Rejection.FUTURE
         if s.t < oldest or newest - s.t > cfg.max_age_s:
             return Rejection.STALE
-        if s.t - self.last_accepted_t < 1.0 / cfg.max_rate_hz and s.t >= self.last_accepted_t:
+        if s.t - self.last_accepted_t < RATE_JITTER / cfg.max_rate_hz and s.t >= self.last_accepted_t:
             return Rejection.RATE
         validated = self._covariance(s.covariance)
         if validated is None:
