@@ -68,6 +68,8 @@ from .fence import FenceSource
 from .mission_journal import JournalEntry, JournalError, MissionJournal, VehicleCheck, resume_status
 from .prearm import PreArmChecks, PreArmInputs
 
+SOURCE_SENSORS = {VehicleState.SOURCE_GNSS: "gps", VehicleState.SOURCE_BARO: "baro"}  # source -> sensor name
+
 TICK_S = 0.02  # guidance rate 50 Hz
 STATE_HEARTBEAT_S = 0.2  # mission/state also at 5 Hz when nothing changes (health's liveness)
 STATUS_WARN_S = 3.0  # after a restart, a journalled plan still waiting for vehicle/status is reported after this long
@@ -164,7 +166,16 @@ class MissionNode:
         home, active = self._home(), self.arbiter.fence.fence
         fence = LocalFence.from_geofence(active, home) if not active.empty and home is not None else None
         battery = self.battery.percentage if self.battery is not None else None
-        return PreArmInputs(ready, self._position(), self.sensor_ok, battery, fence)
+        return PreArmInputs(ready, self._position(), self.sensor_ok, battery, fence, self._unused_sensors())
+
+    def _unused_sensors(self) -> frozenset[str]:
+        """The position sensors (perception/health hardware ids) the estimate is not fused from now
+        (navigation/state's horizontal/height source): a GNSS-denied setup arms without a fix."""
+        s = self.state
+        if s is None:
+            return frozenset()
+        used = {s.horizontal_source, s.height_source}
+        return frozenset(name for source, name in SOURCE_SENSORS.items() if source not in used)
 
     def _on_health(self, msg: Any) -> None:
         for status in msg.status:

@@ -42,10 +42,11 @@ class PreArmInputs:
     sensor_ok: Mapping[str, bool] = field(default_factory=dict)  # sensor name -> healthy (perception/health)
     battery_fraction: float | None = None  # remaining charge 0..1, None before the first battery message
     fence: LocalFence | None = None  # the loaded plan's geofence in the home frame, None without a plan or home
+    unused_sensors: frozenset[str] = frozenset()  # position sources the navigation does not fuse now (navigation/status)
 
 
 class PreArmChecks:
-    """Estimator ready, every sensor healthy, battery above the reserve, inside the geofence —
+    """Estimator ready, every sensor the estimate depends on healthy, battery above the reserve, inside the geofence —
     checked in that order; the first failing rule is the refusal."""
 
     def __init__(self, min_battery: float) -> None:
@@ -54,7 +55,9 @@ class PreArmChecks:
     def check(self, inputs: PreArmInputs) -> Refusal | None:
         if not inputs.estimator_ready:
             return Refusal(RefusalKind.ESTIMATOR_NOT_READY, "estimator not ready (attitude, position and home needed)")
-        unhealthy = sorted(name for name, ok in inputs.sensor_ok.items() if not ok)
+        # a GNSS-denied setup (external pose, docs/navigation.md) arms without a fix: only the sensors
+        # the estimate depends on now must be healthy
+        unhealthy = sorted(name for name, ok in inputs.sensor_ok.items() if not ok and name not in inputs.unused_sensors)
         if unhealthy:
             return Refusal(RefusalKind.SENSORS_UNHEALTHY, f"sensors not healthy: {', '.join(unhealthy)}")
         battery = inputs.battery_fraction

@@ -38,3 +38,10 @@ def test_each_rule_refuses_with_its_kind_and_text():
 def test_rules_are_checked_in_order():
     assert refusal(estimator_ready=False, battery_fraction=0.0).kind == RefusalKind.ESTIMATOR_NOT_READY
     assert refusal(sensor_ok={"gps": False}, battery_fraction=0.0).kind == RefusalKind.SENSORS_UNHEALTHY
+
+
+def test_a_position_source_the_navigation_does_not_use_need_not_be_healthy():
+    """GNSS off from boot, the navigation on an external pose: no fix is not a reason to refuse."""
+    assert refusal(sensor_ok={"gps": False, "baro": True}, unused_sensors=frozenset({"gps"})) is None
+    r = refusal(sensor_ok={"gps": False, "baro": False}, unused_sensors=frozenset({"gps"}))
+    assert r.kind == RefusalKind.SENSORS_UNHEALTHY and str(r) == "sensors not healthy: baro"
