@@ -63,6 +63,7 @@ class NavigationConfig:
     external_fuse_yaw: bool = False  # the external yaw as a heading measurement (indoors)
     origin: Vec | None = None  # configured geodetic origin (lat °, lon °, alt m); None: home from GNSS
     dead_reckoning_valid_s: float = 10.0  # [s] position kept valid after a SPOOFED cut-off
+    integrity_cut: bool = True  # a SPOOFED verdict cuts GNSS off (False: the verdict is only reported)
     history_capacity: int = 600  # IMU samples kept (1.2 s at 500 Hz)
     latency_compensation: bool = True  # False: delayed samples compared with the current state (for comparison)
 
@@ -263,7 +264,7 @@ class NavigationFilter:
                        predicted_cov=ekf.P[0:3, 0:3].copy(), velocity=row[V].copy(), inertial_position=row[PI].copy(),
                        inertial_velocity=row[VI].copy(), external_position=self._external_at(stamp, row))
         self._on_verdict(self.monitor.check_fix(fix))
-        if not self.verdict.fuse:
+        if not self.verdict.fuse and self.cfg.integrity_cut:
             return
         Rh, gate = np.eye(2) * sigma_h**2, ekf.cfg.gps_gate
         if GNSS in self.horizontal.configured:
@@ -313,7 +314,7 @@ class NavigationFilter:
         """A new integrity verdict: block GNSS while SPOOFED and, on the transition, undo what it fused since the onset."""
         was = self.verdict.state
         self.verdict = verdict
-        spoofed = verdict.state == IntegrityState.SPOOFED
+        spoofed = verdict.state == IntegrityState.SPOOFED and self.cfg.integrity_cut
         for selector in (self.horizontal, self.height):
             (selector.blocked.add if spoofed else selector.blocked.discard)(GNSS)
         if spoofed and was != IntegrityState.SPOOFED:

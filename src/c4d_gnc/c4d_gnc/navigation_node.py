@@ -103,6 +103,8 @@ PARAMS = {
                                  read_only=True),
     "origin_altitude_m": Spec(math.nan, "configured geodetic origin of map, AMSL [m]; NaN: home from GNSS",
                               read_only=True),
+    "gnss_integrity_action": Spec("cut", "on a SPOOFED GNSS verdict [cut | monitor]: stop fusing GNSS and undo its "
+                                  "corrections since the onset, or only report the verdict", read_only=True),
     "dead_reckoning_valid_s": Spec(10.0, "position kept valid this long after a SPOOFED GNSS cut-off [s]", 0.0, 120.0,
                                    read_only=True),
 }
@@ -140,6 +142,9 @@ def navigation_config(params: dict) -> NavigationConfig:
     if not any(nan) and not (abs(geo[0]) <= 90.0 and abs(geo[1]) <= 180.0 and math.isfinite(geo[2])):
         raise ComponentError(f"parameter 'origin_latitude_deg' / 'origin_longitude_deg': {geo[0]}, {geo[1]} "
                              "outside [-90, 90] / [-180, 180]")
+    if params["gnss_integrity_action"] not in ("cut", "monitor"):
+        raise ComponentError(f"parameter 'gnss_integrity_action': {params['gnss_integrity_action']!r} is not one of "
+                             "cut, monitor")
     h1 = _choice(params, "horizontal_primary", HORIZONTAL_CHOICES)
     h2 = _choice(params, "horizontal_secondary", (*HORIZONTAL_CHOICES, "none"))
     z1 = _choice(params, "height_primary", HEIGHT_CHOICES)
@@ -155,7 +160,8 @@ def navigation_config(params: dict) -> NavigationConfig:
         external_gate=params["external_gate"], external_alignment=params["external_alignment"],
         external_yaw_offset=math.radians(params["external_yaw_offset_deg"]),
         external_origin=(origin_m[0], origin_m[1], origin_m[2]), external_fuse_yaw=bool(params["external_fuse_yaw"]),
-        origin=None if all(nan) else geo, dead_reckoning_valid_s=params["dead_reckoning_valid_s"])
+        origin=None if all(nan) else geo, dead_reckoning_valid_s=params["dead_reckoning_valid_s"],
+        integrity_cut=params["gnss_integrity_action"] == "cut")
 LOG_PERIOD_S = 5.0
 ALWAYS_VALID = (VehicleState.VALID_ATTITUDE | VehicleState.VALID_ANGULAR_VELOCITY | VehicleState.VALID_ACCELERATION
                 | VehicleState.VALID_ANGULAR_ACCELERATION)
