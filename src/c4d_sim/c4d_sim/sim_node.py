@@ -10,7 +10,9 @@ a command for 0.2 s the motors stop (ESC failsafe).
 
 Faults are ROS parameters, changeable at run time (parameter service):
   fault.imu_dropout, fault.imu_freeze, fault.gps_loss, fault.baro_dropout, fault.baro_freeze,
-  fault.mag_dropout, fault.range_dropout (bool); fault.gps_drift_m_s ([e, n, u]);
+  fault.mag_dropout, fault.range_dropout (bool); GNSS spoofing fault.gps_drift_m_s ([e, n, u] m/s),
+  fault.gps_jump_m ([e, n, u] m), fault.gps_delay_s (meaconing); jamming fault.gps_jam_dropout,
+  fault.gps_jam_sigma_factor;
   fault.motor_health (one factor per motor, 1 = nominal, 0 = failed);
   fault.battery_drain_factor; fault.wind_gust_m_s (extra gust amplitude).
 Parameters: config (sim YAML); world (world YAML: obstacles, movers, wind — docs/flight_loop.md; empty = none);
@@ -18,6 +20,8 @@ scan_rate_hz, scan_beams, scan_range_max_m, scan_noise_m (the lidar). With a wor
 horizontal lidar scan on sensors/scan (lidar.py, vectorised ray casting in its own executive task)
 and publishes the true obstacles and wind on sim/obstacles (10 Hz); without one both topics exist
 but stay silent. Bad configuration or world: one line, exit 2.
+External-pose emulator (external_pose.*, external_pose.py): VIO / mocap from the ground truth on
+navigation/external/odometry and/or MAVLink VISION_POSITION_ESTIMATE to the bridge (mavlink_out.py).
 The behaviour is `simulation.Simulation` (ROS-free); this node maps it to topics and parameters.
 """
 

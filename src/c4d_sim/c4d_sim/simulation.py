@@ -158,6 +158,8 @@ class Simulation:
             if len(values) != 3 or not all(math.isfinite(v) for v in values):
                 return f"{name} needs 3 finite values [e, n, u]"
             setattr(self.faults, "gps_drift" if name == "gps_drift_m_s" else "gps_jump", (values[0], values[1], values[2]))
+            if name == "gps_drift_m_s" and not any(values):  # the spoofing ends: fixes return to the truth
+                self.suite.drift = [0.0, 0.0, 0.0]
         elif name in GPS_NUMBER_FAULTS:
             low, high = GPS_NUMBER_FAULTS[name]
             if not low <= float(value) <= high:

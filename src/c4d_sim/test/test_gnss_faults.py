@@ -111,3 +111,13 @@ def test_gnss_lost_from_boot_gives_no_fix_while_the_other_sensors_run():
         if k % 100 == 0:
             fixes += sim.gps_fixes()
     assert len(fixes) == 1  # fixes resume (the second one is still in its latency)
+
+
+def test_a_zero_drift_rate_set_at_run_time_ends_the_spoofing():
+    t0 = time.monotonic_ns()
+    sim = Simulation(CONFIG, lambda: t0)
+    assert sim.set_fault("gps_drift_m_s", [2.0, 0.0, 0.0]) is None
+    sim.suite.gps(PlantState(), 1.0)  # one second of drift
+    assert sim.suite.drift == [2.0, 0.0, 0.0]
+    sim.set_fault("gps_drift_m_s", [0.0, 0.0, 0.0])
+    assert sim.suite.drift == [0.0, 0.0, 0.0]
