@@ -60,16 +60,7 @@ from c4d_ros.plan_msgs import geofence_from_msg
 
 from .commands import FailsafeCommand, failsafe_command
 from .core_stall import CORE, CoreStallMonitor, CoreStallReport, StatsWindow
-from .events import (
-    LINK_TIMEOUT_S,
-    Estimate,
-    GnssReport,
-    HealthSnapshot,
-    LinkWatch,
-    NavigationStatus,
-    OffboardWatch,
-    evaluate,
-)
+from .events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, NavigationStatus, OffboardWatch, evaluate
 from .liveness import GraphPresence, LivenessMonitor, classify
 from .policy import Action, Event, FailsafeArbiter, FailsafePolicy, PolicyError
 
