@@ -232,6 +232,7 @@ class SampleClock:
             return 0.0
         stamp = usec * 1e-6
         if usec >= EPOCH_MIN_US:
+            clock.base = "epoch"
             age = wall - stamp
             if age < -FUTURE_TOLERANCE_S:
                 raise Rejected("future", f"UNIX-time stamp {-age:.2f} s ahead of this host's clock (sync the clocks)")

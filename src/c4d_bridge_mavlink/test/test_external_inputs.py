@@ -165,6 +165,7 @@ def test_sample_time_bases():
     vio = (1, 197)
     # UNIX epoch µs: exact age
     assert math.isclose(clock.age(vio, round((WALL - 0.03) * 1e6), 5.0, WALL, ROS), 0.03, abs_tol=1e-6)
+    assert clock.describe() == {"clock_1_197": "epoch"}
     with pytest.raises(Rejected, match="ahead") as future:
         clock.age(vio, round((WALL + 1.0) * 1e6), 5.0, WALL, ROS)
     assert future.value.reason == "future"
