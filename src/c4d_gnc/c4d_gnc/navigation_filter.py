@@ -364,8 +364,13 @@ class NavigationFilter:
         z, yaw = self.alignment.to_map(s.position, s.yaw)
         R = self.alignment.covariance_to_map(checked.position_cov)
         gate = cfg.external_gate
-        consistent = ekf.gate_passes(HORIZONTAL, z[0:2] - row[P][0:2], R[0:2, 0:2], gate)
-        self._external_map, self._external_consistent = (s.t, z), consistent
+        # judged as fused: in use, the source carries its switch offset (captured at the switch, bleeding
+        # off) — a raw sample a few decimetres from the estimate right after a switch is not unhealthy
+        as_fused = z.copy()
+        if self.horizontal.active == EXTERNAL:
+            as_fused[0:2] += self.horizontal.offset
+        consistent = ekf.gate_passes(HORIZONTAL, as_fused[0:2] - row[P][0:2], R[0:2, 0:2], gate)
+        self._external_map, self._external_consistent = (s.t, as_fused), consistent
         self._external_arrivals.append(self.imu_t)
         latency = self.imu_t - s.t
         self._external_latency = latency if math.isnan(self._external_latency) else \

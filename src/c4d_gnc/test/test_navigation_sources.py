@@ -87,6 +87,8 @@ def test_external_lost_switches_to_gnss_without_a_step():
     flight.run(26.0)
     status = f.status()
     assert status.horizontal_source == EXTERNAL and status.source_switches == 2
+    # healthy as fused (with its switch offset): health's gnss_spoofed_switched needs it, not a land
+    assert status.external_healthy
     assert flight.max_step(14.0, 26.0) < 0.1  # the fixes' noise-level pulls only: no step
 
 
