@@ -319,7 +319,11 @@ class NavigationFilter:
             (selector.blocked.add if spoofed else selector.blocked.discard)(GNSS)
         if spoofed and was != IntegrityState.SPOOFED:
             now = self.imu_t if self.imu_t is not None else 0.0
-            self._undo_since(verdict.onset_t if verdict.onset_t is not None else now)
+            if self.horizontal.active == GNSS:  # on another source the estimate does not rest on the fixes:
+                # undoing what GNSS fused before the switch would only put a step into it
+                onset = verdict.onset_t if verdict.onset_t is not None else now
+                since_switch = self.horizontal.last_switch_t if math.isfinite(self.horizontal.last_switch_t) else -math.inf
+                self._undo_since(max(onset, since_switch))
             if self.horizontal.active == GNSS and not self._alternative(self.horizontal, now):
                 self.ekf.valid_until = self.ekf.t + self.cfg.dead_reckoning_valid_s
             self.tick(now, monitor=False)

@@ -90,6 +90,10 @@ class SourceSelector:
             for candidate in self.configured:
                 if candidate != self.active and self.fresh(candidate, t):
                     return self._switch(candidate, t)
+            if self.fresh(self.active, t):
+                # its samples keep coming but the gate has refused them for timeout_s and nothing else is
+                # there: re-capture its offset (a reset onto it, without a step) rather than dead-reckon on
+                return self._switch(self.active, t)
             return False
         primary = cfg.primary
         if self.active != primary and self.fresh(primary, t) and t - self._healthy_since.get(primary, math.inf) >= cfg.recovery_s:

@@ -140,3 +140,41 @@ def test_defaults_reproduce_gnss_and_baro(secondary):
     f = flight.filter
     assert f.ekf.origin is not None and f.status().horizontal_source == GNSS and f.status().height_source == BARO
     assert flight.rms(since=8.0) < 0.3 and f.status().source_switches == 0
+
+
+def test_a_source_the_gate_keeps_refusing_is_recaptured_when_nothing_else_is_there():
+    """The only source's samples keep coming but the gate refuses them (the estimate moved, e.g. an
+    undo): after timeout_s the selector re-captures its offset instead of dead-reckoning for ever."""
+    from c4d_gnc.source_selection import SelectionConfig, SourceSelector
+    sel = SourceSelector(SelectionConfig(EXTERNAL, NONE, timeout_s=1.0, recovery_s=2.0, blend_s=10.0), 2)
+    sel.sample(EXTERNAL, 0.0)
+    sel.fused(EXTERNAL, 0.0)
+    for k in range(1, 16):  # valid samples, none fused
+        sel.sample(EXTERNAL, k * 0.1)
+    assert sel.update(1.5) and sel.active == EXTERNAL and sel.switches == 1
+    z = sel.measurement(np.array([10.0, 0.0]), np.array([12.0, 0.5]), 1.5)
+    assert np.allclose(z, (12.0, 0.5))  # fused again from the estimate: no step
+
+
+def test_spoofing_flagged_while_on_the_external_source_moves_nothing():
+    """External primary, GNSS secondary: external lost (GNSS fused), back (external again), then GNSS
+    spoofed. The estimate rests on the external source: nothing GNSS fused before is undone (that
+    would be a step), the external source stays in use and healthy, the estimate stays on the truth."""
+    config = NavigationConfig(horizontal_primary=EXTERNAL, horizontal_secondary=GNSS, origin=ORIGIN,
+                              source_recovery_s=2.0)
+    flight = SyntheticFlight(config, gnss_sigma_m=0.3)
+    flight.run(15.0)
+    flight.external_on = False
+    flight.run(19.0)
+    flight.external_on = True
+    flight.run(23.0)
+    f = flight.filter
+    assert f.status().horizontal_source == EXTERNAL and f.status().source_switches == 2
+    flight.gnss_drift, flight.gnss_drift_t = np.array([1.0, 0.0, 0.0]), 23.0
+    flight.run(31.0)
+    status = f.status()
+    assert f.verdict.state == IntegrityState.SPOOFED, f.verdict
+    assert status.horizontal_source == EXTERNAL and status.external_healthy and status.gnss_undone_m == 0.0
+    assert flight.max_step(23.0, 31.0) < 0.1
+    est, truth = flight.estimates[-1][1:]
+    assert math.hypot(*(est - truth)[:2]) < 0.3
