@@ -1,7 +1,7 @@
 """Failsafes over the whole graph in real time, each fault injected through the sim (or, for
 the geofence, by a fence set in flight with force around a vehicle already outside it, after a
 forced go-to beyond the plan's fence that the core's barrier stops short of it, issue 18): GNSS
-loss → land, geofence breach → RTL, low
+loss → land, geofence breach → RTL, GNSS spoofed with no other source → hold then land, low
 battery → RTL then critical → land (never back), a dead node detected within 1 s. The action,
 its reason and its timing are asserted from health/summary; the vehicle's reaction from
 vehicle/status and the ground truth."""
@@ -183,6 +183,29 @@ def test_failsafes_in_flight(graph):
                   f"with force → geofence_breach RTL {waited:.1f} s later")
     f.wait_landed(60)
     assert math.hypot(*f.truth[:2]) < 2.0, f.truth  # landed at home
+
+    # --- GNSS spoofed (a 1 m/s drift east) with no other horizontal source (issue 19): flagged,
+    # the fixes no longer fused (dead reckoning), HOLD, then LAND; the true excursion stays small
+    f.take_off()
+    start, t_spoof, farthest = f.truth, time.monotonic(), 0.0
+
+    def excursion() -> bool:
+        nonlocal farthest
+        farthest = max(farthest, math.dist(f.truth[:2], start[:2]))
+        return False
+
+    f.fault("fault.gps_drift_m_s", [1.0, 0.0, 0.0])
+    assert f.spin(10.0, lambda: excursion() or f.failsafe == "HOLD"), (f.summary, f.logs("navigation"))
+    flagged = time.monotonic() - t_spoof
+    assert f.summary["reason"].startswith("gnss_spoofed"), f.summary
+    assert f.spin(10.0, lambda: excursion() or f.failsafe == "LAND"), f.summary
+    assert f.spin(40, lambda: excursion() or (f.status is not None and not f.status.armed)), ("not disarmed", f.status)
+    assert farthest < 5.0, farthest
+    report.append(f"GNSS spoofed (1 m/s drift), no other source → HOLD {flagged:.1f} s later, then LAND; true "
+                  f"horizontal excursion {farthest:.2f} m")
+    f.fault("fault.gps_drift_m_s", [0.0, 0.0, 0.0])  # the spoofer stops: the receiver reports the truth again
+    assert f.spin(5, lambda: f.failsafe in ("NONE", "WARN")), f.summary  # reset on disarm
+    f.spin(8.0)  # the integrity monitor re-admits GNSS after its recovery time
 
     # --- low battery → RTL, then critical → LAND; most severe wins, never back to RTL
     f.take_off()
