@@ -218,6 +218,11 @@ class GnssIntegrityMonitor:
         self._last = fix
         return self._decide(t)
 
+    def inertial_gap(self) -> None:
+        """The filter skipped an IMU gap (a stall, dropped samples): the dead-reckoning shadow misses
+        that interval's displacement, so no inertial window may span it — compare from the next fix on."""
+        self._window.clear()
+
     def tick(self, t: float) -> Verdict:
         """Judge the fix rate and accuracy at IMU time `t` [s] (also when no fix comes)."""
         if self._first_fix_t is None or not math.isfinite(t):

@@ -140,6 +140,8 @@ class NavigationFilter:
             return False
         if last is None or not 0.0 < t - last < MAX_IMU_GAP_S:
             self._push(t)
+            if last is not None:
+                self.monitor.inertial_gap()  # the shadow misses the gap's displacement
             return False  # first sample after a gap: no integration over an unknown interval
         dt = t - last
         ekf.predict(gyro, accel, dt)

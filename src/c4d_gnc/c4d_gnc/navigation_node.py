@@ -56,6 +56,7 @@ from c4d_ros.stamps import stamp_to_s
 
 from .ekf import EkfConfig, NavigationEkf, rotation_matrix
 from .external_pose import ExternalConfig, ExternalSample, Rejection
+from .gnss_integrity import IntegrityState
 from .navigation_filter import NavigationConfig, NavigationFilter
 from .source_selection import HEIGHT_CHOICES, HORIZONTAL_CHOICES, NAMES
 
@@ -204,6 +205,7 @@ class NavigationNode:
         self.gnss_external = gnss_input == "external"
         self.status_key: tuple[object, ...] | None = None
         self.status_t = -math.inf
+        self.logged_verdict = IntegrityState.UNKNOWN  # the GNSS integrity state last logged
         self.imu_stamp = (0, 0)
         self.pub_status = node.create_publisher(EstimatorStatus, NAV_STATUS.name, NAV_STATUS.qos)
         self.odometry_period = 1.0 / odometry_rate_hz - 1e-6
@@ -278,6 +280,7 @@ class NavigationNode:
             if self.filter.imu_count % STATUS_CHECK_EVERY == 0:
                 key = self.filter.status_key()
                 if key != self.status_key or t - self.status_t >= STATUS_PERIOD_S:
+                    self.log_verdict_change()
                     self.status_key, self.status_t = key, t
                     self.pub_status.publish(self.status_msg())
             if t - self.odometry_t >= self.odometry_period:
@@ -360,6 +363,19 @@ class NavigationNode:
         cov[0:3, 0:3], cov[3:6, 3:6] = ekf.P[0:3, 0:3], ekf.P[6:9, 6:9]
         odom.pose.covariance = cov.ravel().tolist()
         return odom
+
+    def log_verdict_change(self) -> None:
+        """One line per GNSS integrity state change, with the tests in alarm and their statistics."""
+        v = self.filter.verdict
+        if v.state == self.logged_verdict:
+            return
+        self.logged_verdict = v.state
+        text = (f"GNSS integrity {v.state.name} (alarms {v.alarms!r}, warnings {v.warnings!r}, score {v.score:.2f}; "
+                f"nis {v.innovation_nis:.1f}, jump {v.jump_m:.2f} m, inertial {v.inertial_mismatch_m:.2f} m, cusum "
+                f"{v.drift_cusum:.2f}, external {v.external_distance_m:.2f} m, rate {v.fix_rate_hz:.1f} Hz, "
+                f"accuracy x{v.accuracy_ratio:.1f})")
+        log = self.node.get_logger()
+        (log.warning if v.state in (IntegrityState.SPOOFED, IntegrityState.JAMMED) else log.info)(text)
 
     def log_status(self) -> None:
         ekf = self.ekf
