@@ -52,8 +52,16 @@ from c4d_common.vehicle import (
     UploadRefusal,
     VehicleCommandId,
 )
+from c4d_interfaces.msg import (
+    EstimatorStatus,
+    GnssIntegrity,
+    GuidanceSetpoint,
+    MissionPlan,
+    MissionState,
+    VehicleState,
+    VehicleStatus,
+)
 from c4d_interfaces.msg import Geofence as GeofenceMsg
-from c4d_interfaces.msg import GuidanceSetpoint, MissionPlan, MissionState, VehicleState, VehicleStatus
 from c4d_interfaces.srv import DownloadMission, MissionControl, SetGeofence, UploadMission, VehicleCommand
 from c4d_ros import manifest as m
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
@@ -68,6 +76,7 @@ from .fence import FenceSource
 from .mission_journal import JournalEntry, JournalError, MissionJournal, VehicleCheck, resume_status
 from .prearm import PreArmChecks, PreArmInputs
 
+UNTRUSTED_GNSS = {GnssIntegrity.STATE_SPOOFED: "spoofed", GnssIntegrity.STATE_JAMMED: "jammed"}
 SOURCE_SENSORS = {VehicleState.SOURCE_GNSS: "gps", VehicleState.SOURCE_BARO: "baro"}  # source -> sensor name
 
 TICK_S = 0.02  # guidance rate 50 Hz
@@ -100,6 +109,7 @@ class MissionNode:
         self.status: VehicleStatus | None = None
         self.battery: BatteryState | None = None
         self.sensor_ok: dict[str, bool] = {}  # perception/health: hardware id -> level OK
+        self.nav_status: EstimatorStatus | None = None  # navigation/status: sources, GNSS integrity
         self.last_state_key: tuple[int, int, int, int] | None = None
         self.last_state_pub = 0.0
         self.journal = MissionJournal(state_file) if state_file else None
@@ -138,7 +148,8 @@ class MissionNode:
         self.loop = MutuallyExclusiveCallbackGroup()
         for msg_type, topic, handle in ((VehicleStatus, m.STATUS, partial(setattr, self, "status")),
                                         (BatteryState, m.BATTERY, partial(setattr, self, "battery")),
-                                        (DiagnosticArray, m.P_HEALTH, self._on_health)):
+                                        (DiagnosticArray, m.P_HEALTH, self._on_health),
+                                        (EstimatorStatus, m.NAV_STATUS, partial(setattr, self, "nav_status"))):
             self.node.create_subscription(msg_type, topic.name, handle, topic.qos, callback_group=self.loop)
 
     # ------------------------------------------------------------------ inputs
@@ -166,7 +177,16 @@ class MissionNode:
         home, active = self._home(), self.arbiter.fence.fence
         fence = LocalFence.from_geofence(active, home) if not active.empty and home is not None else None
         battery = self.battery.percentage if self.battery is not None else None
-        return PreArmInputs(ready, self._position(), self.sensor_ok, battery, fence, self._unused_sensors())
+        return PreArmInputs(ready, self._position(), self.sensor_ok, battery, fence, self._unused_sensors(),
+                            self._gnss_untrusted())
+
+    def _gnss_untrusted(self) -> str:
+        """The GNSS integrity verdict when it is spoofed or jammed and the estimate is not carried by an
+        external source (navigation/status); "" otherwise."""
+        s = self.nav_status
+        if s is None or s.horizontal_source == VehicleState.SOURCE_EXTERNAL:
+            return ""
+        return UNTRUSTED_GNSS.get(s.gnss.state, "")
 
     def _unused_sensors(self) -> frozenset[str]:
         """The position sensors (perception/health hardware ids) the estimate is not fused from now

@@ -18,6 +18,7 @@ from c4d_common.geofence import BreachKind, LocalFence, Point3
 class RefusalKind(Enum):
     ESTIMATOR_NOT_READY = "estimator not ready"
     SENSORS_UNHEALTHY = "sensors not healthy"
+    GNSS_UNTRUSTED = "GNSS not trusted"
     BATTERY_LOW = "battery low"
     OUTSIDE_GEOFENCE = "outside the geofence"
 
@@ -42,11 +43,13 @@ class PreArmInputs:
     sensor_ok: Mapping[str, bool] = field(default_factory=dict)  # sensor name -> healthy (perception/health)
     battery_fraction: float | None = None  # remaining charge 0..1, None before the first battery message
     fence: LocalFence | None = None  # the loaded plan's geofence in the home frame, None without a plan or home
-    unused_sensors: frozenset[str] = frozenset()  # position sources the navigation does not fuse now (navigation/status)
+    unused_sensors: frozenset[str] = frozenset()  # position sources the navigation does not fuse now (navigation/state)
+    gnss_untrusted: str = ""  # the integrity verdict ("spoofed", "jammed") while the estimate depends on GNSS; "" = fine
 
 
 class PreArmChecks:
-    """Estimator ready, every sensor the estimate depends on healthy, battery above the reserve, inside the geofence —
+    """Estimator ready, every sensor the estimate depends on healthy, GNSS trusted if it depends on it,
+    battery above the reserve, inside the geofence —
     checked in that order; the first failing rule is the refusal."""
 
     def __init__(self, min_battery: float) -> None:
@@ -60,6 +63,10 @@ class PreArmChecks:
         unhealthy = sorted(name for name, ok in inputs.sensor_ok.items() if not ok and name not in inputs.unused_sensors)
         if unhealthy:
             return Refusal(RefusalKind.SENSORS_UNHEALTHY, f"sensors not healthy: {', '.join(unhealthy)}")
+        if inputs.gnss_untrusted:
+            # taking off into a gnss_spoofed / gnss_jammed failsafe (hold, then land) helps nobody
+            return Refusal(RefusalKind.GNSS_UNTRUSTED, f"GNSS {inputs.gnss_untrusted} (integrity monitor): wait until it "
+                                                       "clears or fly on another source")
         battery = inputs.battery_fraction
         if battery is not None and battery < self.min_battery:
             return Refusal(RefusalKind.BATTERY_LOW, f"battery at {battery:.0%}, below the {self.min_battery:.0%} reserve")

@@ -45,3 +45,9 @@ def test_a_position_source_the_navigation_does_not_use_need_not_be_healthy():
     assert refusal(sensor_ok={"gps": False, "baro": True}, unused_sensors=frozenset({"gps"})) is None
     r = refusal(sensor_ok={"gps": False, "baro": False}, unused_sensors=frozenset({"gps"}))
     assert r.kind == RefusalKind.SENSORS_UNHEALTHY and str(r) == "sensors not healthy: baro"
+
+
+def test_an_untrusted_gnss_the_estimate_depends_on_refuses_arming():
+    r = refusal(gnss_untrusted="jammed")
+    assert r.kind == RefusalKind.GNSS_UNTRUSTED and str(r).startswith("GNSS jammed (integrity monitor)")
+    assert refusal(gnss_untrusted="jammed", estimator_ready=False).kind == RefusalKind.ESTIMATOR_NOT_READY

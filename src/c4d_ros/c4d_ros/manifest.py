@@ -166,7 +166,8 @@ NAV_POSE = Topic("navigation/pose", "geometry_msgs/msg/PoseStamped", ST, "50 Hz 
                  "the estimate's pose in `map` for external nodes")
 # --- navigation sources (issue 19, docs/navigation.md) ----------------------------------------
 NAV_STATUS = Topic("navigation/status", "c4d_interfaces/msg/EstimatorStatus", L, "5 Hz + on change", ("navigation",),
-                   ("health", "bridge"), "fused sources, switches, external input health and rejections, GNSS integrity")
+                   ("health", "bridge", "mission"), "fused sources, switches, external input health and rejections, GNSS "
+                   "integrity; mission: pre-arm refuses an untrusted GNSS the estimate depends on")
 EXTERNAL_ODOMETRY = Topic("navigation/external/odometry", "nav_msgs/msg/Odometry", S, "external: up to 200 Hz",
                           ("sim", "bridge"), ("navigation",),
                           "public input: VIO / mocap odometry (frame_id one of `external_frame_ids`, child base_link); "
