@@ -374,8 +374,10 @@ class NavigationNode:
                 f"nis {v.innovation_nis:.1f}, jump {v.jump_m:.2f} m, inertial {v.inertial_mismatch_m:.2f} m, cusum "
                 f"{v.drift_cusum:.2f}, external {v.external_distance_m:.2f} m, rate {v.fix_rate_hz:.1f} Hz, "
                 f"accuracy x{v.accuracy_ratio:.1f})")
-        log = self.node.get_logger()
-        (log.warning if v.state in (IntegrityState.SPOOFED, IntegrityState.JAMMED) else log.info)(text)
+        if v.state in (IntegrityState.SPOOFED, IntegrityState.JAMMED):  # one call site per severity (rclpy's rule)
+            self.node.get_logger().warning(text)
+        else:
+            self.node.get_logger().info(text)
 
     def log_status(self) -> None:
         ekf = self.ekf
