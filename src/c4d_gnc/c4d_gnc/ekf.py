@@ -154,6 +154,15 @@ class NavigationEkf:
         self.t += dt
 
     # ---------------------------------------------------------------- updates
+    def rotate(self, theta: np.ndarray) -> None:
+        """Apply a small attitude correction `theta` [rad] about the world axes (the error state's δθ)."""
+        angle = float(np.linalg.norm(theta))
+        if angle > 1e-12:
+            axis = theta / angle
+            s = math.sin(angle / 2)
+            dq = (math.cos(angle / 2), float(axis[0] * s), float(axis[1] * s), float(axis[2] * s))
+            self.q = quat.normalize(quat.mul(dq, self.q))
+
     def _update(self, H: np.ndarray, innovation: np.ndarray, Rm: np.ndarray, gate: float | None = None) -> bool:
         S = H @ self.P @ H.T + Rm
         if gate is not None:
@@ -164,14 +173,7 @@ class NavigationEkf:
         dx = K @ innovation
         self.p += dx[0:3]
         self.v += dx[3:6]
-        dq = quat.from_euler(0.0, 0.0, 0.0)
-        theta = dx[6:9]
-        angle = float(np.linalg.norm(theta))
-        if angle > 1e-12:
-            axis = theta / angle
-            s = math.sin(angle / 2)
-            dq = (math.cos(angle / 2), axis[0] * s, axis[1] * s, axis[2] * s)
-        self.q = quat.normalize(quat.mul(dq, self.q))
+        self.rotate(dx[6:9])
         self.bg += dx[9:12]
         self.ba += dx[12:15]
         I_KH = np.eye(15) - K @ H

@@ -367,8 +367,9 @@ class NavigationNode:
     def log_verdict_change(self) -> None:
         """One line per GNSS integrity state change, with the tests in alarm and their statistics."""
         v = self.filter.verdict
-        if v.state == self.logged_verdict:
-            return
+        alarm = IntegrityState.SPOOFED, IntegrityState.JAMMED
+        if v.state == self.logged_verdict or (v.state not in alarm and self.logged_verdict not in alarm):
+            return  # OK <-> SUSPECT flicker in nominal flight is not logged (navigation/status carries it)
         self.logged_verdict = v.state
         text = (f"GNSS integrity {v.state.name} (alarms {v.alarms!r}, warnings {v.warnings!r}, score {v.score:.2f}; "
                 f"nis {v.innovation_nis:.1f}, jump {v.jump_m:.2f} m, inertial {v.inertial_mismatch_m:.2f} m, cusum "
