@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 NONE, GNSS, EXTERNAL, BARO, RANGE = 0, 1, 2, 3, 4  # == VehicleState.SOURCE_*
+RECAPTURED = frozenset({EXTERNAL})  # sources re-captured when the gate keeps refusing them (see update)
 NAMES = {"none": NONE, "gnss": GNSS, "external": EXTERNAL, "baro": BARO, "range": RANGE}
 HORIZONTAL_CHOICES = ("gnss", "external")
 HEIGHT_CHOICES = ("baro", "gnss", "external", "range")
@@ -90,9 +91,11 @@ class SourceSelector:
             for candidate in self.configured:
                 if candidate != self.active and self.fresh(candidate, t):
                     return self._switch(candidate, t)
-            if self.fresh(self.active, t):
+            if self.active in RECAPTURED and self.fresh(self.active, t):
                 # its samples keep coming but the gate has refused them for timeout_s and nothing else is
-                # there: re-capture its offset (a reset onto it, without a step) rather than dead-reckon on
+                # there: re-capture its offset (a reset onto it, without a step) rather than dead-reckon on.
+                # Never GNSS: a re-capture would absorb a spoofer's jump (the EKF has its own reset after
+                # an outage, gps_reset_after_s, and the integrity monitor judges the fixes first)
                 return self._switch(self.active, t)
             return False
         primary = cfg.primary
