@@ -14,28 +14,34 @@ Interfaces (c4d_ros.manifest, docs/ARCHITECTURE.md):
   serves      gnc/command (arm, disarm, take-off, land, hold, set mode, go-to; applied at the next tick)
   publishes   control/actuators (every tick; the only publisher), vehicle/status (latched, on change
               and at 5 Hz), gnc/executor_stats (every report_period_s), gnc/schedule (latched, once)
-Parameters: PARAMS below (`ros2 param describe core <name>`); all read-only (a change needs a restart);
-config, airframe and phase_method report the values in force (the file's, unless overridden).
+Parameters: PARAMS below (`ros2 param describe core <name>`), read-only (a change needs a restart);
+config, airframe and phase_method report the values in force (the file's, unless overridden). Every gain
+and limit of the airframe is a live parameter (c4d_gnc.live_gains, docs/parameters.md): a change is checked
+when set (refused with the reason) and applied at the next tick's latch (logged with the tick index);
+with `vehicle` set, changes persist in that vehicle's store and are restored at start.
 SIGINT/SIGTERM: the loop stops, zero motor commands (armed = false) are published, exit 0.
 Bad configuration or parameter: one line on stderr, exit 2, nothing armed.
 """
 
 from __future__ import annotations
 
-import math
+import array
+import pickle
 import signal
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu
+from std_msgs.msg import UInt8MultiArray
 
-from c4d_common.barrier import BarrierError, BarrierParams, FenceGeometry, Obstacle
-from c4d_common.geodesy import GeoOrigin
+from c4d_common.barrier import BarrierError, BarrierParams
 from c4d_common.plan import Geofence, PlanError
-from c4d_common.vehicle import SetpointSource
+from c4d_common.tunable import TunableError, VehicleStore
+from c4d_common.vehicle import Command, SetpointSource
 from c4d_interfaces.msg import (
     ActuatorCommand,
     ExecutorStats,
@@ -49,10 +55,12 @@ from c4d_interfaces.msg import Geofence as GeofenceMsg
 from c4d_interfaces.srv import VehicleCommand
 from c4d_ros import node_runtime
 from c4d_ros.drain import Drainer
+from c4d_ros.live_params import LiveParameters, describe
 from c4d_ros.manifest import (
     ACTUATORS,
     CLOCK,
     CORE_COMMAND,
+    CORE_JOURNAL,
     EXECUTOR_STATS,
     GEOFENCE,
     NAV_STATE,
@@ -72,11 +80,14 @@ from c4d_sched.lockstep import CLOCK as SIM_CLOCK
 from c4d_sched.lockstep import InputGate, LockstepClock
 from c4d_sched.profiler import ExecutorReport, format_table
 
+from . import journal as jr
 from . import ros_conversions as conv
 from . import wire
 from .core_commands import answer_command
 from .core_config import CoreConfig, CoreConfigError, load_core_config
+from .core_inputs import fence_local, obstacles_from_msg
 from .gnc import GncCore
+from .live_gains import airframe_with, core_table
 from .status_cadence import StatusCadence
 
 NAME = "core"
@@ -99,6 +110,8 @@ PARAMS = {
     "lockstep_input_timeout_s": Spec(1.0, "lockstep: wall time a tick waits for a running input (gyro, state) that "
                                           "missed its step before it runs without it (logged) [s]", 0.01, 3600.0,
                                      read_only=True),
+    "vehicle": Spec("", "vehicle whose changed gains persist in $XDG_DATA_HOME/c4d/vehicles/<vehicle>/core.yaml and are "
+                        "restored at start; empty: changes are not persisted [name]", read_only=True),
     "avoidance": Spec(True, "obstacle and geofence barrier on the velocity setpoint in guided modes (docs/daa.md) [bool]",
                       read_only=True),
     "avoid_detection_range": Spec(2.0, "barrier detection range D: the potential is zero beyond this distance to an "
@@ -111,6 +124,8 @@ PARAMS = {
                                       "detour [s]", 0.1, 60.0, read_only=True),
 }
 LOCKSTEP_STREAMS = ("gyro", "state")
+JOURNAL_TICKS = 50  # a journal batch every 50 ticks (10 Hz at 500 Hz)
+ARMING = (Command.ARM, Command.TAKEOFF)
 
 
 @dataclass(frozen=True)
@@ -129,6 +144,7 @@ class CoreParams:
     avoid_protection_radius: float = 0.5
     avoid_brake_decel: float = 4.0
     avoid_detour_after_s: float = 1.0
+    vehicle: str = ""
 
     def barrier(self) -> BarrierParams:
         """The barrier's parameters; BarrierError (one line) when they contradict each other (D <= r)."""
@@ -146,14 +162,17 @@ class CoreNode:
     phase (actuator command). Nothing here waits or allocates beyond the messages it sends.
     """
 
-    def __init__(self, node, cfg: CoreConfig, params: CoreParams) -> None:
-        self.node, self.cfg, self.params = node, cfg, params
+    def __init__(self, node, cfg: CoreConfig, params: CoreParams, live: LiveParameters | None = None) -> None:
+        self.node, self.cfg, self.params, self.live = node, cfg, params, live
         self.log = node.get_logger()
         self.clock = node.get_clock()
         self.core = GncCore(cfg.airframe, cfg.schedule.tick_us / 1e6, barrier=params.barrier(), avoidance=params.avoidance)
         self.geofence: Geofence | None = None  # geofence/active as received (geodetic)
         self.origin: tuple[float, float, float] | None = None  # home the fence was converted with
         self.status = StatusCadence()
+        # input consumption journal for `resim` (c4d_gnc.journal): every tick's clock and inputs, a snapshot at arm
+        self.journal, self.now_ns, self.journal_k = jr.JournalWriter(), 0, 0
+        self.pub_journal = node.create_publisher(UInt8MultiArray, CORE_JOURNAL.name, CORE_JOURNAL.qos)
         self.drainer = Drainer(node)
         # the 500 Hz inputs and output go serialized (c4d_gnc.wire: ~1 µs instead of ~40 µs per message)
         self.drainer.subscription(Imu, params.imu_topic, self.on_imu, newest_only(P_IMU.qos), raw=True)  # newest gyro
@@ -191,9 +210,8 @@ class CoreNode:
         return functions
 
     def clock_s(self) -> float:
-        if self.lockstep:
-            return self.lockstep.now_ns() * 1e-9
-        return self.clock.now().nanoseconds * 1e-9
+        self.now_ns = self.lockstep.now_ns() if self.lockstep else self.clock.now().nanoseconds
+        return self.now_ns * 1e-9
 
     # ----------------------------------------------------------------- lockstep (simulated time)
     def _lockstep_clock(self, tick_ns: int) -> LockstepClock:
@@ -243,9 +261,11 @@ class CoreNode:
     def on_imu(self, raw: bytes) -> None:
         inputs = self.core.inputs
         inputs.gyro, inputs.gyro_stamp = wire.gyro_from_cdr(raw)
+        self.journal.stamp(jr.C_GYRO, jr.cdr_stamp_ns(raw))
 
     def on_state(self, raw: bytes) -> None:
         state = self.core.inputs.state = wire.state_from_cdr(raw)
+        self.journal.stamp(jr.C_STATE, jr.cdr_stamp_ns(raw))
         if state.origin != self.origin and state.origin is not None:
             self.origin = state.origin
             self._convert_fence()
@@ -254,17 +274,13 @@ class CoreNode:
         """Obstacles as the barrier's cylinders (local ENU), once per message; stamped with the scan's time when it
         is plausible (movers are extrapolated from it), else with the arrival time."""
         now = self.clock_s()
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        if not 0.0 <= now - stamp <= 0.5:
-            stamp = now
+        self.journal.surroundings(self.now_ns, jr.stamp_ns(msg.header.stamp.sec, msg.header.stamp.nanosec))
         inputs = self.core.inputs
-        inputs.obstacles = tuple(
-            Obstacle(int(o.id), o.position.x, o.position.y, float(o.radius), o.velocity.x, o.velocity.y,
-                     float(o.height) if math.isfinite(o.height) and o.height > 0 else math.inf, stamp)
-            for o in msg.obstacles if math.isfinite(o.position.x) and math.isfinite(o.position.y) and o.radius >= 0)
+        inputs.obstacles = obstacles_from_msg(msg, now)
         inputs.obstacles_stamp = now
 
     def on_geofence(self, msg: GeofenceMsg) -> None:
+        self.journal.blob(jr.C_FENCE, serialize_message(msg))
         try:
             self.geofence = geofence_from_msg(msg)
         except PlanError as exc:
@@ -276,7 +292,7 @@ class CoreNode:
         """The fence in local ENU for the barrier: when a fence or a new home arrives (never per tick)."""
         if self.geofence is None or self.origin is None:
             return
-        fence = None if self.geofence.empty else FenceGeometry.from_geofence(self.geofence, GeoOrigin(*self.origin))
+        fence = fence_local(self.geofence, self.origin)
         self.core.inputs.fence = fence
         self.log.info("geofence in force: " + ("none" if fence is None else
                       f"{len(fence.inclusion)}-vertex inclusion, {len(fence.exclusion_polygons)} exclusion polygons, "
@@ -285,6 +301,7 @@ class CoreNode:
 
     def on_setpoint(self, source: SetpointSource, topic: str, msg: GuidanceSetpoint) -> None:
         self.core.inputs.now = self.clock_s()  # arrival time: the offboard stream's proof of life
+        self.journal.setpoint(int(source), self.now_ns, jr.stamp_ns(msg.header.stamp.sec, msg.header.stamp.nanosec))
         try:
             self.core.receive_setpoint(source, conv.setpoint_from_msg(msg))
         except ValueError as exc:
@@ -292,6 +309,7 @@ class CoreNode:
 
     def on_command(self, request: VehicleCommand.Request, response: VehicleCommand.Response) -> VehicleCommand.Response:
         self.core.inputs.now = self.clock_s()
+        self.journal.command(self.now_ns, request.command, request.mode, request.force, request.altitude)
         result, response.message = answer_command(self.core, request.command, request.mode, request.altitude, request.force)
         response.result = int(result)
         return response
@@ -300,12 +318,29 @@ class CoreNode:
     def input_phase(self, k: int) -> None:
         self.drainer.drain()  # take what is queued, never wait (c4d_ros.drain)
         self.core.inputs.now = self.clock_s()
+        core = self.core
+        if not core.out.armed and any(r.command in ARMING for r in core.pending):  # resim's start point
+            for payload in self.journal.snapshot({"core": core, "geofence": self.geofence, "origin": self.origin,
+                                                  "cfg": self.cfg, "params": self.params}):
+                self.pub_journal.publish(UInt8MultiArray(data=array.array("B", payload)))
 
     def latch(self, k: int) -> None:
+        if self.live is not None:
+            changes = self.live.take()  # validated when set; in force from this tick's first task on
+            if changes:
+                self.journal.blob(jr.C_RETUNE, pickle.dumps(changes))
+                self.core.retune(airframe_with(self.core.af, changes))
+                self.log.info(f"parameters applied at tick {k}: {describe(changes)}")
         self.core.latch()
 
     def output_phase(self, k: int) -> None:
         self.pub_actuators.publish(wire.actuator_cdr(self.core.out, self.core.inputs.now, k))
+        self.journal.tick(k, self.now_ns)  # after the tick: a retune journaled at the latch precedes it
+        if k - self.journal_k >= JOURNAL_TICKS:
+            self.journal_k = k
+            payload = self.journal.take()
+            if payload is not None:
+                self.pub_journal.publish(UInt8MultiArray(data=array.array("B", payload)))
 
     def status_task(self, k: int) -> None:
         out, now = self.core.out, self.core.inputs.now
@@ -355,6 +390,8 @@ class CoreNode:
             self.executive.run()
         finally:
             self._motors_to_zero()
+            if self.live is not None:
+                self.live.flush()  # the last change is on disk before the process ends
         return 0
 
     def _stop(self, signum, frame) -> None:
@@ -381,10 +418,13 @@ def main(argv: list[str] | None = None) -> int:
         cfg = CoreParams(**declared.values).load_config()
         params = CoreParams(**declared.settle(cfg.parameters()))
         params.barrier()
-    except (ParameterError, CoreConfigError, BarrierError) as exc:
+        store = VehicleStore.of(params.vehicle, NAME) if params.vehicle else None
+        live = LiveParameters(node, core_table(cfg.airframe), store, node.get_logger().info)
+        cfg = replace(cfg, airframe=airframe_with(cfg.airframe, live.values))
+    except (ParameterError, CoreConfigError, BarrierError, TunableError) as exc:
         return node_runtime.fail(NAME, str(exc), node)
     try:
-        return CoreNode(node, cfg, params).run()
+        return CoreNode(node, cfg, params, live).run()
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

@@ -277,6 +277,18 @@ class GncCore:
             self._capture_hold()
             out.mode, out.nav = Mode.AUTO, Nav.GOTO if req.command == Command.GOTO else Nav.RTL
 
+    def retune(self, airframe: Airframe) -> None:
+        """Swap in `airframe`'s gains and limits (same vehicle, new tuning); called at the latch only, so
+        every stage of a tick runs with one set. Integrators and filters keep their state (no bump); the
+        mixer is rebuilt only when its limits changed."""
+        old, self.af = self.af, airframe
+        self.translation.af = self.rotation.af = airframe
+        self.translation.velocity_pid.gains = airframe.velocity
+        self.rotation.rate_pid.gains = airframe.rate
+        self.rotation.rate_pid.d_cutoff_hz = airframe.rate_d_cutoff_hz
+        if (old.idle_command, old.max_thrust) != (airframe.idle_command, airframe.max_thrust):
+            self.mixer = Mixer(airframe)
+
     def _reset_controllers(self) -> None:
         self.translation.reset()
         self.rotation.reset()
