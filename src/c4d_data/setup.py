@@ -25,6 +25,7 @@ setup(
             "c4d-analyze = c4d_data.cli:analyze_main",
             "repair = c4d_data.cli:repair_main",
             "info = c4d_data.cli:info_main",
+            "catalog = c4d_data.cli:catalog_main",
         ],
         "c4d.components": ["recorder = c4d_data.recorder_node:component"],
     },

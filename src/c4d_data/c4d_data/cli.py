@@ -1,4 +1,4 @@
-"""Command lines: `analyze` (= `c4d-analyze`), `repair`, `info`.
+"""Command lines: `analyze` (= `c4d-analyze`), `repair`, `info`, `catalog` (catalog.py).
 
 Each prints one line `<tool>: error: <reason>` on stderr and exits non-zero on bad input (bad
 arguments: 2, unusable file or failed write: 1); what a recording holds is never modified
@@ -91,6 +91,12 @@ def analyze_main(argv: list[str] | None = None) -> int:
         return 1
     print(f"c4d-analyze: report {index}")
     return 0
+
+
+def catalog_main(argv: list[str] | None = None) -> int:
+    from .catalog import main
+
+    return main(argv)
 
 
 if __name__ == "__main__":

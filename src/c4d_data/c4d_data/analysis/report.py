@@ -16,11 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from ..bag_reader import open_bag
+from ..bag_reader import BagContents, open_bag
 from . import plots
 from .extract import FlightData, extract
+from .summary import FIGURE_LABELS, format_figure, summarize
 
-SECTIONS = {"overview": "Recording", "trajectory": "Trajectory vs setpoints", "tracking": "Tracking errors",
+SECTIONS = {"overview": "Recording", "summary": "Flight summary", "trajectory": "Trajectory vs setpoints",
+            "tracking": "Tracking errors",
             "attitude": "Attitude and rates", "motors": "Motor outputs", "battery": "Battery",
             "executor": "Executor timing", "jitter": "Release jitter", "health": "Health and failsafe timeline",
             "mission": "Mission progress", "captures": "Capture map", "link": "Telemetry link statistics"}
@@ -55,6 +57,17 @@ def _overview(data: FlightData) -> str:
     return (f"<p>{html.escape(c.path.name)}: {c.message_count} messages, {len(c.topics)} topics, "
             f"{c.duration_s:.1f} s, {c.path.stat().st_size / 2**20:.1f} MiB, file {state}{extra}</p>"
             + _table(["topic", "type", "messages", "rate [Hz]"], rows))
+
+
+def _summary(contents: BagContents) -> str:
+    """The flight's figures, exactly as the fleet catalog stores them (data-value: full precision)."""
+    if not contents.complete:
+        return '<p class="missing">incomplete recording: run repair for the summary figures</p>'
+    figures = summarize(contents)[0].as_dict()
+    rows = "".join(f'<tr><td>{label}{f" [{unit}]" if unit else ""}</td><td data-figure="{key}" '
+                   f'data-value="{html.escape(str(figures[key]))}">{html.escape(format_figure(figures[key]))}</td></tr>'
+                   for key, (label, unit) in FIGURE_LABELS.items())
+    return f'<table id="figures"><tr><th>figure</th><th>value</th></tr>{rows}</table>'
 
 
 def _executor(data: FlightData, out: Path) -> str:
@@ -167,6 +180,7 @@ def write_report(bag: str | Path, out: str | Path, progress: bool = True) -> Pat
     out.mkdir(parents=True, exist_ok=True)
     body = {
         "overview": _overview(data),
+        "summary": _summary(contents),
         "trajectory": _img(plots.trajectory(data, out), "no state estimate recorded (navigation/state)"),
         "tracking": _img(plots.tracking(data, out), "no guidance setpoints recorded (guidance/setpoint): nothing to track"),
         "attitude": _img(plots.attitude(data, out), "no state estimate recorded (navigation/state)"),
