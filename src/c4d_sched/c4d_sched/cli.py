@@ -3,6 +3,7 @@
     c4d-sched assign FILE [--method gcdplus] [--cycle N] [--json]
     c4d-sched evaluate FILE [--offsets 4,3,0,8] [--json]     (offsets default to the file's)
     c4d-sched experiment [--sizes 8,16] [--utilisations 0.5,...] [--sets 1000] [--out DIR]
+    c4d-sched network NETWORK.yaml [--cycle-load crossing|section] [--exact]   (GCD#, see network_cli)
 
 FILE is a YAML or CSV task set (see c4d_sched.taskio). Bad input: one line on stderr, exit 2.
 """
@@ -20,6 +21,7 @@ from .fifo import EvaluationTooLarge, cycle_loads, evaluate
 from .gcdplus import GcdPlusResult
 from .methods import METHODS, assign
 from .model import Assignment, TaskSet, TaskSetError
+from .network_cli import add_network_parser
 from .taskio import load_taskset
 
 
@@ -217,6 +219,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--out", default="sched-experiment")
     p.set_defaults(func=cmd_experiment)
+    add_network_parser(sub)
     return parser
 
 
