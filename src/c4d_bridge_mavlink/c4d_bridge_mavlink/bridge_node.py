@@ -28,6 +28,7 @@ import yaml
 from c4d_common import quat
 from c4d_common.airframe import AirframeError, default_airframe_path, load_airframe
 from c4d_common.share import share_file
+from c4d_ros import lifecycle
 from c4d_ros.component import ComponentError, Host, run_components
 from c4d_ros.params import ParameterError, Spec, declare_all
 
@@ -157,7 +158,8 @@ class BridgeNode:
     def __init__(self, node, settings: BridgeSettings) -> None:
         self.ros = RosSide(node)
         self.snap = self.ros.snapshot
-        self.params = ParamServer(self._send, settings.param_file, apply=self.ros.set_node_parameter)
+        self.params = ParamServer(self._send, settings.param_file, apply=self.ros.set_node_parameters,
+                                  on_refused=lambda text: self.ros.statustext(M.MAV_SEVERITY_WARNING, text))
         for problem in self.params.load_errors:
             node.get_logger().warning(problem)
         node.get_logger().info(f"bridge: MAVLink parameters persist in {settings.param_file}" if settings.param_file
@@ -212,6 +214,17 @@ class BridgeNode:
         self.router.close()
         self.ros.shutdown()
         return 0
+
+    def idle(self, budget_s: float) -> None:
+        """Inactive (c4d_ros.lifecycle): ROS callbacks and services only; no MAVLink in or out."""
+        self.ros.spin_once()
+        if budget_s > 0:
+            time.sleep(budget_s)
+
+    def release(self) -> None:
+        """Lifecycle cleanup: the endpoints closed and the private executor stopped; the node stays."""
+        self.router.close()
+        self.ros.executor.shutdown()
 
     def step(self, budget_s: float = 0.004) -> None:
         """One loop pass: ROS callbacks, MAVLink input (waiting at most `budget_s` for it, less when a
@@ -342,15 +355,22 @@ class BridgeNode:
         return encode(self.snap, time.monotonic()) if encode else None
 
 
-def component(rclpy, host: Host) -> BridgeNode:
+def component(rclpy, host: Host) -> lifecycle.ManagedComponent:
     """The bridge as a component (c4d_ros.component): alone (its step waits on the sockets) or
     composed with others (stepped every 4 ms by the shared loop, without waiting)."""
-    node = rclpy.create_node("bridge")
+    node = lifecycle.create_node(rclpy, "bridge")
     try:
-        return BridgeNode(node, BridgeSettings.from_parameters(declare_all(node, PARAMETERS)))
+        settings = BridgeSettings.from_parameters(declare_all(node, PARAMETERS))
     except (ParameterError, SettingsError) as exc:
         node.destroy_node()
         raise ComponentError(str(exc)) from None
+
+    def build() -> BridgeNode:  # configure (c4d_ros.lifecycle): parameter file, endpoints opened, ROS side
+        try:
+            return BridgeNode(node, settings)
+        except SettingsError as exc:
+            raise ComponentError(str(exc)) from None
+    return lifecycle.ManagedComponent("bridge", node, build, period_s=BridgeNode.period_s, spun=False)
 
 
 def main(argv: list[str] | None = None) -> int:

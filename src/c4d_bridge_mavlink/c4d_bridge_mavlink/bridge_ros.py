@@ -142,6 +142,9 @@ class RosSide:
         self.set_fence = node.create_client(SetGeofence, topics.SET_GEOFENCE.name)
         self.SetGeofence = SetGeofence
         self.param_clients: dict[str, object] = {}
+        self.get_clients: dict[str, object] = {}
+        self.live_nodes: list[str] = []  # nodes with live MAVLink parameters (their values are read once up)
+        self.live_asked: set[str] = set()
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(node)
         self.Header, self.DiagnosticArray, self.DiagnosticStatus = Header, DiagnosticArray, DiagnosticStatus
@@ -158,8 +161,12 @@ class RosSide:
 
     def bind(self, router, missions, params) -> None:
         self.router, self.missions, self.params = router, missions, params
-        self.pending_params = [(spec, params.get(spec.name)) for spec in params.table
-                               if spec.node and params.get(spec.name) != spec.default]  # persisted: push once up
+        self.pending_params = [(spec, params.get(spec.name)) for spec in params.table  # persisted: push once up
+                               if spec.node and not spec.live and params.get(spec.name) != spec.default]
+        self.live_nodes = sorted({spec.node for spec in params.table if spec.live})
+        from rcl_interfaces.msg import ParameterEvent
+
+        self.node.create_subscription(ParameterEvent, "/parameter_events", self._on_parameter_event, 100)
 
     # ------------------------------------------------------------------ loop hooks
     def spin_once(self) -> None:
@@ -203,8 +210,13 @@ class RosSide:
         if self.pending_params:
             for spec, value in list(self.pending_params):
                 if self._param_client(spec.node).service_is_ready():
-                    self.set_node_parameter(spec, value)
+                    self.set_node_parameters(spec.node, [(spec, value)], lambda results: None)
                     self.pending_params.remove((spec, value))
+        for node_name in self.live_nodes:
+            if node_name not in self.live_asked:
+                self._read_live(node_name)
+        if self.params is not None:
+            self.params.pump(now)
 
     def shutdown(self) -> None:
         """Stop the private executor and destroy the node; the rclpy context is the process runner's."""
@@ -488,18 +500,59 @@ class RosSide:
             self.param_clients[node_name] = self.node.create_client(SetParameters, f"{node_name}/set_parameters")
         return self.param_clients[node_name]
 
-    def set_node_parameter(self, spec: ParamSpec, value: float) -> None:
+    def set_node_parameters(self, node_name: str, entries: list[tuple[ParamSpec, float]], done) -> None:
+        """Set the ROS parameters behind MAVLink `entries` on `node_name` in one request; done(one
+        (ok, reason) per entry) — an entry mapped onto several ROS parameters is ok when all are — or
+        done(None) when the node does not answer."""
         from rcl_interfaces.srv import SetParameters
         from rclpy.parameter import Parameter
 
-        request = SetParameters.Request(parameters=[Parameter(spec.ros_name, value=float(value)).to_parameter_msg()])
+        params = [Parameter(ros, value=float(value)).to_parameter_msg() for spec, value in entries for ros in spec.ros_names]
+        request = SetParameters.Request(parameters=params)
 
-        def done(reply) -> None:
-            if reply is None or not reply.results[0].successful:
-                why = "node not reachable" if reply is None else reply.results[0].reason
-                self.statustext(M.MAV_SEVERITY_WARNING, f"{spec.name} not applied: {why}")
+        def answered(reply) -> None:
+            if reply is None or len(reply.results) != len(params):
+                return done(None)
+            results, k = [], 0
+            for spec, _ in entries:
+                own = reply.results[k:k + len(spec.ros_names)]
+                k += len(spec.ros_names)
+                refused = [r.reason for r in own if not r.successful]
+                results.append((not refused, "; ".join(refused)))
+            done(results)
 
-        self._call(self._param_client(spec.node), request, done)
+        self._call(self._param_client(node_name), request, answered)
+
+    def _read_live(self, node_name: str) -> None:
+        """The live parameters' values in force on `node_name` (once its service is up)."""
+        from rcl_interfaces.srv import GetParameters
+        from rclpy.parameter import parameter_value_to_python
+
+        if node_name not in self.get_clients:
+            self.get_clients[node_name] = self.node.create_client(GetParameters, f"{node_name}/get_parameters")
+        client = self.get_clients[node_name]
+        if not client.service_is_ready():
+            return
+        self.live_asked.add(node_name)
+        names = self.params.live_names(node_name)
+
+        def answered(reply) -> None:
+            if reply is None or len(reply.values) != len(names):
+                self.live_asked.discard(node_name)  # ask again
+                return
+            self.params.node_values(node_name, {n: parameter_value_to_python(v) for n, v in zip(names, reply.values)})
+
+        self._call(client, GetParameters.Request(names=names), answered)
+
+    def _on_parameter_event(self, event) -> None:
+        from rclpy.parameter import parameter_value_to_python
+
+        if self.params is None:
+            return
+        node_name = event.node.lstrip("/")
+        if node_name in self.live_nodes:
+            self.params.node_values(node_name, {p.name: parameter_value_to_python(p.value) for p in event.changed_parameters},
+                                    announce=True)
 
     def publish_offboard(self, target: Target) -> None:
         """A MAVLink offboard setpoint (offboard.OffboardDecoder) on offboard/trajectory_setpoint,

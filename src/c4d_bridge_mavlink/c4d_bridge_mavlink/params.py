@@ -1,24 +1,35 @@
 """MAVLink parameter microservice (https://mavlink.io/en/services/parameter.html), vehicle side.
 
 What: a fixed table of parameters (≤ 16-character ids, REAL32 or INT32, bounds, default, doc),
-each either owned by the bridge (e.g. geofence limits and cruise speed applied to missions a GCS
-uploads) or mapped onto a ROS node parameter (`node`/`ros_name`: set through that node's
-set_parameters service by the bridge node). PARAM_REQUEST_LIST streams every value,
-PARAM_REQUEST_READ answers by id or index, PARAM_SET checks type, finiteness and bounds: accepted
-values are persisted to a YAML file (so they survive restarts) and echoed in PARAM_VALUE;
-rejected ones get PARAM_ERROR (VALUE_OUT_OF_RANGE / DOES_NOT_EXIST) plus, as older GCSs expect,
-a PARAM_VALUE with the unchanged current value.
+PX4's names where PX4 has the parameter (MC_ROLLRATE_P, MPC_XY_VEL_P_ACC, ...; c4d's units, see
+docs/parameters.md), C4D_* names otherwise. Each is either owned by the bridge (e.g. geofence
+limits and cruise speed applied to missions a GCS uploads; persisted in the bridge's YAML file)
+or mapped onto ROS parameters of a node (`node`/`ros_names`: set through that node's
+set_parameters service). A `live` mapping is one of the node's live tunables (c4d_ros.live_params):
+the node validates, applies at its boundary and persists the value per vehicle; the bridge reads
+the values in force from the node (`node_values`: at start and from /parameter_events, so a
+`ros2 param set` shows up in the GCS too) and echoes in PARAM_VALUE only what the node accepted.
+
+PARAM_REQUEST_LIST streams every value with param_count / param_index, PARAM_REQUEST_READ
+answers by id or index, PARAM_SET checks id, type, finiteness and bounds first: rejected ones
+get PARAM_ERROR (DOES_NOT_EXIST / VALUE_OUT_OF_RANGE / READ_ONLY) plus, as older GCSs expect, a
+PARAM_VALUE with the unchanged value. Node-mapped sets are coalesced (newest value per id) and
+sent at most `rate_hz` times a second per node with one request in flight, so a flood of
+PARAM_SETs costs the node a few service calls, not thousands; a node's refusal or silence is a
+PARAM_ERROR plus the unchanged value (and the reason via `on_refused`, a STATUSTEXT).
 
 Why the bridge owns a table instead of exposing every ROS parameter: MAVLink ids are limited to 16
 characters, typed as float/int and expected to be stable across versions; an explicit table keeps
-that contract and documents bounds in one place.
+that contract and documents bounds in one place (test/test_live_params_table.py checks it
+against the nodes' own tables).
 """
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
+import struct
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +38,8 @@ import yaml
 from .signing import mavlink
 
 M = mavlink
+INT_TYPES = (M.MAV_PARAM_TYPE_INT32, M.MAV_PARAM_TYPE_UINT32, M.MAV_PARAM_TYPE_INT16, M.MAV_PARAM_TYPE_UINT16,
+             M.MAV_PARAM_TYPE_INT8, M.MAV_PARAM_TYPE_UINT8)
 
 
 @dataclass(frozen=True)
@@ -37,13 +50,66 @@ class ParamSpec:
     maximum: float
     integer: bool = False
     node: str = ""  # ROS node whose parameter this is ("" = the bridge's own)
-    ros_name: str = ""
+    ros_names: tuple[str, ...] = ()  # the node's parameter(s) this sets (several: e.g. MPC_XY_P = x and y)
     doc: str = ""
+    live: bool = False  # a live tunable of `node`: the node applies and persists it, the bridge reads it back
 
     @property
     def mav_type(self) -> int:
         return M.MAV_PARAM_TYPE_INT32 if self.integer else M.MAV_PARAM_TYPE_REAL32
 
+
+def _core(name: str, ros: str | tuple[str, ...], default: float, low: float, high: float, doc: str) -> ParamSpec:
+    return ParamSpec(name, default, low, high, node="core", ros_names=(ros,) if isinstance(ros, str) else ros, doc=doc,
+                     live=True)
+
+
+def _rate_axis(px4: str, lim: str, axis: str, p: float, i: float, d: float, i_lim: float) -> tuple[ParamSpec, ...]:
+    g = f"gains.rate.{axis}"
+    return (_core(f"MC_{px4}RATE_P", f"{g}.p", p, 0.0, 200.0, f"[1/s] {axis} rate P (angular accel. per rate error)"),
+            _core(f"MC_{px4}RATE_I", f"{g}.i", i, 0.0, 200.0, f"[1/s^2] {axis} rate I"),
+            _core(f"MC_{px4}RATE_D", f"{g}.d", d, 0.0, 10.0, f"[1] {axis} rate D (on the filtered gyro)"),
+            _core(f"MC_{lim}_INT_LIM", f"{g}.i_limit", i_lim, 0.0, 500.0, f"[rad/s^2] {axis} rate integrator clamp"))
+
+
+def _velocity(px4: str, axes: tuple[str, ...], p: float, i: float, d: float, i_lim: float) -> tuple[ParamSpec, ...]:
+    def names(term: str) -> tuple[str, ...]:
+        return tuple(f"gains.velocity.{a}.{term}" for a in axes)
+    what = "horizontal" if px4 == "XY" else "vertical"
+    return (_core(f"MPC_{px4}_VEL_P_ACC", names("p"), p, 0.0, 50.0, f"[1/s] {what} velocity P (accel. per speed error)"),
+            _core(f"MPC_{px4}_VEL_I_ACC", names("i"), i, 0.0, 50.0, f"[1/s^2] {what} velocity I"),
+            _core(f"MPC_{px4}_VEL_D_ACC", names("d"), d, 0.0, 10.0, f"[1] {what} velocity D"),
+            _core(f"C4D_{px4}_VEL_I_LIM", names("i_limit"), i_lim, 0.0, 20.0, f"[m/s^2] {what} velocity integrator clamp"))
+
+
+# The core's defaults below are the bundled quad_x airframe's; the bridge shows the values the core
+# reports once it is reachable (another airframe, stored changes).
+CORE_TABLE: tuple[ParamSpec, ...] = (
+    *_rate_axis("ROLL", "RR", "roll", 22.0, 8.0, 0.5, 40.0),
+    *_rate_axis("PITCH", "PR", "pitch", 22.0, 8.0, 0.5, 40.0),
+    *_rate_axis("YAW", "YR", "yaw", 12.0, 4.0, 0.0, 10.0),
+    _core("IMU_DGYRO_CUTOFF", "gains.rate.d_cutoff_hz", 40.0, 1.0, 250.0, "[Hz] low-pass cutoff of the rate loop's D term"),
+    _core("MC_ROLL_P", "gains.attitude.roll.p", 9.0, 0.0, 50.0, "[1/s] roll attitude P (body rate per angle error)"),
+    _core("MC_PITCH_P", "gains.attitude.pitch.p", 9.0, 0.0, 50.0, "[1/s] pitch attitude P"),
+    _core("MC_YAW_P", "gains.attitude.yaw.p", 4.0, 0.0, 50.0, "[1/s] yaw attitude P"),
+    _core("MC_ROLLRATE_MAX", "limits.max_rate_deg_s.roll", 220.0, 5.0, 2000.0, "[deg/s] roll rate limit"),
+    _core("MC_PITCHRATE_MAX", "limits.max_rate_deg_s.pitch", 220.0, 5.0, 2000.0, "[deg/s] pitch rate limit"),
+    _core("MC_YAWRATE_MAX", "limits.max_rate_deg_s.yaw", 120.0, 5.0, 2000.0, "[deg/s] yaw rate limit"),
+    _core("MPC_XY_P", ("gains.position.x.p", "gains.position.y.p"), 1.5, 0.0, 20.0,
+          "[1/s] horizontal position P (speed per position error)"),
+    _core("MPC_Z_P", "gains.position.z.p", 1.5, 0.0, 20.0, "[1/s] vertical position P"),
+    *_velocity("XY", ("x", "y"), 3.5, 0.3, 0.1, 2.0),
+    *_velocity("Z", ("z",), 5.0, 1.5, 0.0, 3.0),
+    _core("MPC_XY_VEL_MAX", "limits.max_horizontal_speed_m_s", 8.0, 0.1, 30.0, "[m/s] horizontal speed limit"),
+    _core("MPC_Z_VEL_MAX_UP", "limits.max_climb_speed_m_s", 3.0, 0.1, 15.0, "[m/s] climb speed limit"),
+    _core("MPC_Z_VEL_MAX_DN", "limits.max_descent_speed_m_s", 1.5, 0.1, 10.0, "[m/s] descent speed limit"),
+    _core("MPC_TILTMAX_AIR", "limits.max_tilt_deg", 35.0, 5.0, 80.0, "[deg] tilt limit"),
+    _core("MPC_THR_MIN", "limits.min_thrust_ratio", 0.08, 0.0, 1.0, "[1] lowest collective thrust in flight"),
+    _core("MPC_THR_MAX", "limits.max_thrust_ratio", 0.95, 0.05, 1.0, "[1] highest collective thrust"),
+    _core("C4D_IDLE_CMD", "motor.idle_command", 0.05, 0.0, 0.5, "[1] mixer: command of an armed motor at zero demand"),
+    _core("MPC_TKO_SPEED", "guidance.takeoff_speed_m_s", 1.5, 0.1, 10.0, "[m/s] take-off climb speed"),
+    _core("MPC_LAND_SPEED", "guidance.land_speed_m_s", 0.7, 0.1, 5.0, "[m/s] landing descent speed"),
+)
 
 TABLE: tuple[ParamSpec, ...] = (
     ParamSpec("SYSID_THISMAV", 1, 1, 250, True, doc="MAVLink system id of the vehicle (applies at the next start)"),
@@ -53,11 +119,16 @@ TABLE: tuple[ParamSpec, ...] = (
     ParamSpec("GF_MAX_HOR_DIST", 0.0, 0.0, 10000.0, doc="[m] geofence radius from home (0 = none) for uploaded missions"),
     ParamSpec("GF_MAX_VER_DIST", 0.0, 0.0, 500.0, doc="[m] geofence ceiling above home (0 = none) for uploaded missions"),
     ParamSpec("COM_DL_LOSS_T", 5.0, 1.0, 60.0, doc="[s] no GCS heartbeat this long = data link lost"),
-    ParamSpec("SIM_WIND_GUST", 0.0, 0.0, 15.0, node="sim", ros_name="fault.wind_gust_m_s",
+    ParamSpec("SIM_WIND_GUST", 0.0, 0.0, 15.0, node="sim", ros_names=("fault.wind_gust_m_s",),
               doc="[m/s] SITL: extra wind gust amplitude"),
-    ParamSpec("SIM_BAT_DRAIN", 1.0, 0.0, 1000.0, node="sim", ros_name="fault.battery_drain_factor",
+    ParamSpec("SIM_BAT_DRAIN", 1.0, 0.0, 1000.0, node="sim", ros_names=("fault.battery_drain_factor",),
               doc="SITL: battery drain multiplier"),
+    *CORE_TABLE,
 )
+
+# apply(node, [(spec, value), ...], done): set them on `node`; done(results) with one (ok, reason) per
+# entry, or done(None) when the node did not answer
+Apply = Callable[[str, list[tuple[ParamSpec, float]], Callable[[list[tuple[bool, str]] | None], None]], None]
 
 
 def param_id(name: str) -> bytes:
@@ -71,14 +142,24 @@ def decode_id(raw) -> str:
 
 
 class ParamServer:
-    def __init__(self, send: Callable[[object], None], store: Path | None,
-                 apply: Callable[[ParamSpec, float], None] | None = None, table: tuple[ParamSpec, ...] = TABLE) -> None:
-        """`store`: YAML file of persisted values (None: nothing persists); `apply(spec, value)`
-        pushes a mapped parameter to its node (the bridge node does it asynchronously)."""
+    def __init__(self, send: Callable[[object], None], store: Path | None, apply: Apply | None = None,
+                 table: tuple[ParamSpec, ...] = TABLE, rate_hz: float = 20.0,
+                 on_refused: Callable[[str], None] | None = None) -> None:
+        """`store`: YAML file of the bridge's persisted values (None: nothing persists); `apply` pushes
+        node-mapped values to their node (the bridge node does it asynchronously); `rate_hz`: at most
+        this many set requests a second per node; `on_refused(text)`: a node's refusal, one line."""
         self.send, self.store, self.apply, self.table = send, store, apply, table
+        self.on_refused = on_refused
         self.index = {p.name: k for k, p in enumerate(table)}
+        self.by_ros = {(p.node, r): p for p in table if p.node for r in p.ros_names}
         self.values = {p.name: float(p.default) for p in table}
         self.load_errors: list[str] = []
+        self.min_interval_s = 1.0 / rate_hz
+        self.outgoing: dict[str, dict[str, tuple[float, object]]] = {}  # node -> name -> (value, the PARAM_SET)
+        self.in_flight: set[str] = set()
+        self.next_send: dict[str, float] = {}
+        self.dirty = False  # the bridge's own values changed since the last write
+        self.coalesced = 0  # PARAM_SETs superseded by a newer one before they were sent
         if store is not None and store.exists():
             self._load(store)
 
@@ -93,6 +174,8 @@ class ParamServer:
             return
         for name, value in doc.items():
             reason = self.check(str(name), value)
+            if not reason and self.table[self.index[str(name)]].live:
+                reason = "kept by its node, not by the bridge"
             if reason:
                 self.load_errors.append(f"{store}: {name}: {reason}; ignored")
             else:
@@ -119,8 +202,6 @@ class ParamServer:
         spec = self.table[k]
         value = self.values[name]
         if spec.integer:  # INT32 travels bytewise in the float field (MAVLink "bytewise" encoding)
-            import struct
-
             value = struct.unpack("<f", struct.pack("<i", int(value)))[0]
         return M.MAVLink_param_value_message(param_id(name), value, spec.mav_type, len(self.table), k)
 
@@ -141,7 +222,11 @@ class ParamServer:
 
     def _error(self, msg, name: str, error: int) -> None:
         self.send(M.MAVLink_param_error_message(msg.get_srcSystem(), msg.get_srcComponent(), param_id(name),
-                                                getattr(msg, "param_index", -1), error))
+                                                self.index.get(name, getattr(msg, "param_index", -1)), error))
+
+    def _refuse(self, msg, name: str, error: int) -> None:
+        self._error(msg, name, error)
+        self.send(self._value_message(name))  # the unchanged value: what older GCSs wait for
 
     def _set(self, msg) -> None:
         name = decode_id(msg.param_id)
@@ -149,27 +234,82 @@ class ParamServer:
             return self._error(msg, name, M.MAV_PARAM_ERROR_DOES_NOT_EXIST)
         spec = self.table[self.index[name]]
         value = float(msg.param_value)
-        if spec.integer and msg.param_type in (M.MAV_PARAM_TYPE_INT32, M.MAV_PARAM_TYPE_UINT32, M.MAV_PARAM_TYPE_INT16,
-                                               M.MAV_PARAM_TYPE_UINT16, M.MAV_PARAM_TYPE_INT8, M.MAV_PARAM_TYPE_UINT8):
-            import struct
-
+        if spec.integer and msg.param_type in INT_TYPES:
             value = float(struct.unpack("<i", struct.pack("<f", msg.param_value))[0])
         if self.check(name, value):
-            self._error(msg, name, M.MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE)
-            self.send(self._value_message(name))  # the unchanged value: what older GCSs wait for
+            return self._refuse(msg, name, M.MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE)
+        if spec.node:
+            if self.apply is None:
+                return self._refuse(msg, name, M.MAV_PARAM_ERROR_COMPONENT_NOT_FOUND)
+            queue = self.outgoing.setdefault(spec.node, {})
+            self.coalesced += name in queue
+            queue[name] = (value, msg)  # echoed once the node answered (pump)
             return
         self.values[name] = value
-        self._persist()
-        if spec.node and self.apply is not None:
-            self.apply(spec, value)
+        self.dirty = True
         self.send(self._value_message(name))
+
+    # ------------------------------------------------------------------ node-mapped values
+    def pump(self, now: float) -> None:
+        """Send each node's coalesced changes (one request in flight per node, at most rate_hz a
+        second) and write the bridge's own changed values (at most once per call)."""
+        if self.dirty:
+            self.dirty = False
+            self._persist()
+        for node, queue in self.outgoing.items():
+            if not queue or node in self.in_flight or now < self.next_send.get(node, -math.inf) or self.apply is None:
+                continue
+            batch, self.outgoing[node] = dict(queue), {}
+            self.in_flight.add(node)
+            self.next_send[node] = now + self.min_interval_s
+            entries = [(self.table[self.index[name]], value) for name, (value, _) in batch.items()]
+            self.apply(node, entries, lambda results, node=node, batch=batch: self._answered(node, batch, results))
+
+    def _answered(self, node: str, batch: dict[str, tuple[float, object]], results) -> None:
+        self.in_flight.discard(node)
+        for k, (name, (value, msg)) in enumerate(batch.items()):
+            spec = self.table[self.index[name]]
+            if results is None:
+                self._refuse(msg, name, M.MAV_PARAM_ERROR_COMPONENT_NOT_FOUND)
+                self._refused(f"{name} not applied: {node} not reachable")
+                continue
+            ok, reason = results[k]
+            if not ok:
+                self._refuse(msg, name, M.MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE)
+                self._refused(f"{name} refused by {node}: {reason}")
+                continue
+            self.values[name] = value
+            if not spec.live:
+                self.dirty = True  # e.g. the sim's fault parameters: kept by the bridge, pushed at start
+            self.send(self._value_message(name))
+
+    def _refused(self, text: str) -> None:
+        if self.on_refused is not None:
+            self.on_refused(text)
+
+    def node_values(self, node: str, values: Mapping[str, object], announce: bool = False) -> None:
+        """Values `node` reports (get_parameters at start, /parameter_events later): the live
+        parameters mapped onto them take them; `announce` sends PARAM_VALUE for each change (a GCS
+        sees a `ros2 param set` as PX4's GCSs see any change)."""
+        for ros_name, value in values.items():
+            spec = self.by_ros.get((node, ros_name))
+            if spec is None or not spec.live or ros_name != spec.ros_names[0] or self.check(spec.name, value):
+                continue
+            changed = self.values[spec.name] != float(value)  # type: ignore[arg-type]
+            self.values[spec.name] = float(value)  # type: ignore[arg-type]
+            if changed and announce:
+                self.send(self._value_message(spec.name))
+
+    def live_names(self, node: str) -> list[str]:
+        """The ROS parameters of `node` the live MAVLink parameters read their value from."""
+        return [p.ros_names[0] for p in self.table if p.node == node and p.live]
 
     def _persist(self) -> None:
         if self.store is None:
             return
         self.store.parent.mkdir(parents=True, exist_ok=True)
         changed = {p.name: (int(self.values[p.name]) if p.integer else self.values[p.name])
-                   for p in self.table if self.values[p.name] != p.default}
+                   for p in self.table if not p.live and self.values[p.name] != p.default}
         tmp = self.store.with_suffix(".tmp")
         tmp.write_text(yaml.safe_dump(changed, sort_keys=True))
         os.replace(tmp, self.store)  # atomic: a crash never leaves a half-written file

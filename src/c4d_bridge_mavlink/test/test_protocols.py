@@ -115,23 +115,27 @@ def test_parameters_bounds_types_and_persistence(tmp_path):
     out: list = []
     store = tmp_path / "params.yaml"
     applied: list = []
-    server = ParamServer(out.append, store, apply=lambda spec, v: applied.append((spec.ros_name, v)))
+    server = ParamServer(out.append, store, apply=lambda node, entries, done: (
+        applied.extend((spec.ros_names[0], v) for spec, v in entries), done([(True, "")] * len(entries))))
     server.handle(from_gcs(M.MAVLink_param_request_list_message(1, 1)))
     assert len(out) == len(server.table) and out[0].param_count == len(server.table)
     server.handle(from_gcs(M.MAVLink_param_set_message(1, 1, b"MPC_XY_CRUISE", 99.0, M.MAV_PARAM_TYPE_REAL32)))
     assert out[-2].get_type() == "PARAM_ERROR" and out[-2].error == M.MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE
+    server.pump(0.0)
     assert out[-1].param_value == 5.0 and not store.exists()
     server.handle(from_gcs(M.MAVLink_param_set_message(1, 1, b"MPC_XY_CRUISE", float("nan"), M.MAV_PARAM_TYPE_REAL32)))
     assert out[-2].get_type() == "PARAM_ERROR"
     server.handle(from_gcs(M.MAVLink_param_set_message(1, 1, b"NO_SUCH", 1.0, M.MAV_PARAM_TYPE_REAL32)))
     assert out[-1].error == M.MAV_PARAM_ERROR_DOES_NOT_EXIST
     server.handle(from_gcs(M.MAVLink_param_set_message(1, 1, b"SIM_WIND_GUST", 3.0, M.MAV_PARAM_TYPE_REAL32)))
+    server.pump(1.0)
     assert applied == [("fault.wind_gust_m_s", 3.0)] and out[-1].param_value == 3.0
     import struct
 
     bytewise = struct.unpack("<f", struct.pack("<i", 7))[0]  # INT32 bytewise in the float field
     server.handle(from_gcs(M.MAVLink_param_set_message(1, 1, b"SYSID_THISMAV", bytewise, M.MAV_PARAM_TYPE_INT32)))
     assert server.get("SYSID_THISMAV") == 7
+    server.pump(2.0)
     again = ParamServer(out.append, store)
     assert again.get("SIM_WIND_GUST") == 3.0 and again.get("SYSID_THISMAV") == 7 and again.load_errors == []
     store.write_text("MPC_XY_CRUISE: 1000\n: [")
