@@ -38,9 +38,9 @@ CSS = """body{font-family:sans-serif;margin:2em}table{border-collapse:collapse;f
 td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}th{background:#eee;cursor:pointer;user-select:none}
 td.t{text-align:left}img{max-width:48%;border:1px solid #ddd;margin:2px}th.asc:after{content:" \\25B2"}
 th.desc:after{content:" \\25BC"}"""
-SCRIPT = """document.querySelectorAll("table.sortable th").forEach(function (th, col) {
+SCRIPT = """document.querySelectorAll("table.sortable th").forEach(function (th) {
   th.addEventListener("click", function () {
-    var table = th.closest("table"), body = table.tBodies[0];
+    var table = th.closest("table"), body = table.tBodies[0], col = th.cellIndex;
     var asc = !th.classList.contains("asc");
     table.querySelectorAll("th").forEach(function (h) { h.classList.remove("asc", "desc"); });
     th.classList.add(asc ? "asc" : "desc");
