@@ -13,9 +13,10 @@ import time
 import yaml
 
 from c4d_common.airframe import default_airframe_path, load_airframe
+from c4d_gnc.core_config import default_config_path
 from c4d_gnc.gnc import GncCore, Landed, Mode, Nav, StateSample
 
-CORE_YAML = default_airframe_path("quad_x").parent.parent / "core.yaml"
+CORE_YAML = default_config_path()  # the airframes moved to c4d_common; core.yaml stays with c4d_gnc
 
 
 def core_executive_config() -> dict:

@@ -3,25 +3,33 @@
 What: every task runs every `divider` ticks (rate = tick rate / divider) at tick indices
 k ≡ phase (mod divider). Phases are explicit or `auto`: then GCD+ (or the `paparazzi` / `zero`
 methods kept for comparison) chooses offsets O_i in µs for periods T_i = divider·tick and
-WCETs C_i = budget, and phase = ⌊O_i / tick⌋ mod divider. Inside a tick, due tasks run in the
-fixed group order input → estimation → guidance → control → actuators → telemetry → default,
-then by O_i mod tick, then by chain position and name. Equal-divider `chains` (e.g. estimate
-→ control → mix) are scheduled as one task (budget = sum) so they always share a tick.
+WCETs C_i = budget, and phase = ⌊O_i / tick⌋ mod divider; `optimal` solves for the phases that
+minimise the worst per-tick budget sum exactly (CP-SAT, optimal.py, within
+`optimal_time_limit_s`, warm-started with GCD+; no answer in time → GCD+ and a `warning`).
+Inside a tick, due tasks run in the fixed group order input → estimation → guidance → control
+→ actuators → telemetry → default, then by precedence depth (producers first), then by O_i mod
+tick, then by chain position and name. Equal-divider `chains` (e.g. estimate → control → mix)
+are scheduled as one task (budget = sum) so they always share a tick. `precedence` lists
+multi-rate SPC edges (precedence.py): every method's phases meet them (heuristics through
+`PhaseSystem.repair`, the exact model as constraints); an unsatisfiable set is a config error.
 Why: the same phasing science as for links (thesis ch. 3) makes per-tick load smooth, which is
 what keeps a 500 Hz executive free of overruns when slow, heavy tasks are added.
 
 YAML (the `executive:` mapping of a core config):
     tick_hz: 500                 # main tick, 1e6 / tick_hz must be an integer number of µs
-    phase_method: gcdplus        # gcdplus | paparazzi | zero
+    phase_method: gcdplus        # gcdplus | optimal | paparazzi | zero
+    optimal_time_limit_s: 2.0    # optimal: solver time limit at start
     tasks:
       - {name: rate_control, group: control, rate_hz: 500, budget_us: 120}
       - {name: telemetry, group: telemetry, divider: 50, budget_us: 300, phase: auto}
     chains: [[state_update, rate_control, mixer]]
+    precedence:                  # producer, consumer, w_p, w_c, M0 (weights default to the
+      - {producer: attitude_control, consumer: rate_control, m0: 1}   # balanced ones, M0 to 0)
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,9 +38,11 @@ from .fifo import cycle_loads
 from .gcdplus import ORDER_VARIANTS, GcdPlusResult, run_order
 from .methods import assign
 from .model import Assignment, Task, TaskSet
+from .precedence import Constraint, Edge, PhaseSystem, PrecedenceError, balanced_weights, build_constraints, in_tick_depth
 
 GROUPS = ("input", "estimation", "guidance", "control", "actuators", "telemetry", "default")
-PHASE_METHODS = ("gcdplus", "paparazzi", "zero")
+PHASE_METHODS = ("gcdplus", "optimal", "paparazzi", "zero")
+DEFAULT_OPTIMAL_TIME_LIMIT_S = 2.0
 
 
 class ScheduleConfigError(ValueError):
@@ -70,6 +80,11 @@ class TickSchedule:
     certificate_reason: str
     max_tick_load_us: int
     tasks: tuple[ScheduledTask, ...]  # in execution order within a tick
+    optimality: str = ""  # optimal method: "optimal" (proven) | "feasible" (time limit hit); "" otherwise
+    lower_bound_us: int = 0  # optimal method: proven lower bound on the worst tick budget sum
+    solver_s: float = 0.0  # optimal method: solver wall time
+    warning: str = ""  # one line when the requested method could not be honoured (fallback used)
+    precedence: tuple[Edge, ...] = ()
 
     @property
     def tick_hz(self) -> float:
@@ -96,7 +111,8 @@ def parse_config(doc: object) -> tuple[int, str, list[TaskSpec], list[list[str]]
     """Validate an `executive:` mapping; return (tick_us, method, task specs, chains)."""
     if not isinstance(doc, Mapping):
         raise ScheduleConfigError("executive: must be a mapping")
-    unknown = set(doc) - {"tick_hz", "phase_method", "tasks", "chains", "name", "report_period_s"}
+    unknown = set(doc) - {"tick_hz", "phase_method", "tasks", "chains", "name", "report_period_s", "precedence",
+                          "optimal_time_limit_s"}
     if unknown:
         raise ScheduleConfigError(f"executive: unknown field(s) {', '.join(sorted(unknown))}")
     tick_hz = doc.get("tick_hz", 500)
@@ -166,14 +182,62 @@ def parse_config(doc: object) -> tuple[int, str, list[TaskSpec], list[list[str]]
     return tick_us, method, specs, [list(c) for c in chains]
 
 
-def _best_gcdplus_for_ticks(taskset: TaskSet, tick_us: int) -> Assignment:
+def parse_precedence(doc: Mapping[str, Any], specs: Sequence[TaskSpec]) -> tuple[Edge, ...]:
+    """The `precedence:` list of an executive mapping: {producer, consumer, w_p, w_c, m0} mappings
+    (w_p, w_c default to the balanced weights of the two dividers, m0 to 0)."""
+    items = doc.get("precedence") or []
+    if not isinstance(items, list):
+        raise ScheduleConfigError("executive.precedence must be a list of {producer, consumer, w_p, w_c, m0}")
+    dividers = {s.name: s.divider for s in specs}
+    edges = []
+    for k, item in enumerate(items):
+        where = f"executive.precedence[{k}]"
+        if not isinstance(item, Mapping):
+            raise ScheduleConfigError(f"{where}: must be a mapping {{producer, consumer, w_p, w_c, m0}}")
+        extra = set(item) - {"producer", "consumer", "w_p", "w_c", "m0"}
+        if extra:
+            raise ScheduleConfigError(f"{where}: unknown field(s) {', '.join(sorted(extra))}")
+        producer, consumer = _field(item, "producer", where, str), _field(item, "consumer", where, str)
+        for name in (producer, consumer):
+            if name not in dividers:
+                raise ScheduleConfigError(f"{where}: unknown task '{name}'")
+        w_p, w_c = balanced_weights(dividers[producer], dividers[consumer])
+        edge = Edge(producer, consumer, item.get("w_p", w_p), item.get("w_c", w_c), item.get("m0", 0))
+        try:
+            build_constraints([edge], {producer: 0, consumer: 1}, [dividers[producer], dividers[consumer]])
+        except PrecedenceError as exc:
+            raise ScheduleConfigError(f"{where}: {exc}") from None
+        edges.append(edge)
+    return tuple(edges)
+
+
+def parse_time_limit(doc: Mapping[str, Any]) -> float:
+    value = doc.get("optimal_time_limit_s", DEFAULT_OPTIMAL_TIME_LIMIT_S)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 or value == float("inf"):
+        raise ScheduleConfigError(f"executive.optimal_time_limit_s must be a positive number of seconds, got {value!r}")
+    return float(value)
+
+
+Repair = Callable[[list[int]], list[int]]
+
+
+def _best_gcdplus_for_ticks(taskset: TaskSet, tick_us: int, repair: Repair | None = None) -> Assignment:
     """GCD+ for an executive: every order variant, keep the one whose phases give the lowest
     worst per-tick budget sum, certified variants first (the tick, not the FIFO delay, is what
-    an executive overruns)."""
+    an executive overruns). `repair` moves phases (in ticks) to meet precedence edges; a
+    repaired task's offset becomes phase·tick."""
     best = None
     for position, order in enumerate(ORDER_VARIANTS):
         result = run_order(taskset, order)
         phases = [(o // tick_us) % (t.period // tick_us) * tick_us for o, t in zip(result.offsets, taskset.tasks, strict=True)]
+        if repair is not None:
+            before = [p // tick_us for p in phases]
+            moved = repair(before)
+            if moved != before:
+                offsets = tuple(o if a == m else m * tick_us for o, a, m in zip(result.offsets, before, moved, strict=True))
+                phases = [m * tick_us for m in moved]
+                result = GcdPlusResult(**{**result.__dict__, "certificate": False, "placements": tuple(
+                    pl._replace(offset=o) for pl, o in zip(result.placements, offsets, strict=True))})
         worst = int(cycle_loads(taskset.periods, taskset.wcets, phases, cycle=tick_us)[1].max())
         key = (not result.certificate, worst, position)
         if best is None or key < best[0]:
@@ -183,29 +247,76 @@ def _best_gcdplus_for_ticks(taskset: TaskSet, tick_us: int) -> Assignment:
     return Assignment("gcdplus", result.offsets, result, f"order {result.order} (lowest worst tick load)")
 
 
-def build_schedule(tick_us: int, method: str, specs: Sequence[TaskSpec], chains: Sequence[Sequence[str]] = ()) -> TickSchedule:
+def build_schedule(tick_us: int, method: str, specs: Sequence[TaskSpec], chains: Sequence[Sequence[str]] = (),
+                   precedence: Sequence[Edge] = (), time_limit_s: float = DEFAULT_OPTIMAL_TIME_LIMIT_S) -> TickSchedule:
     """Phases and in-tick order for `specs` (see module docstring)."""
     chain_of = {name: tuple(chain) for chain in chains for name in chain}
     units: dict[str, list[TaskSpec]] = {}  # scheduling unit (chain head or task) -> members
     for spec in specs:
         head = chain_of.get(spec.name, (spec.name,))[0]
         units.setdefault(head, []).append(spec)
-    auto = [head for head, members in units.items() if members[0].phase is None]
+    heads = list(units)
+    unit_of = {spec.name: heads.index(chain_of.get(spec.name, (spec.name,))[0]) for spec in specs}
+    by_name = {spec.name: spec for spec in specs}
+    # in-tick order: group, then precedence depth (chain links and edges inside one group)
+    links = [(a, b) for chain in chains for a, b in zip(chain, chain[1:], strict=False)]
+    links += [(e.producer, e.consumer) for e in precedence]
+    depth = in_tick_depth([s.name for s in specs], [(a, b) for a, b in links if by_name[a].group == by_name[b].group])
+    rank = {s.name: (GROUPS.index(s.group), depth[s.name]) for s in specs}
+    first = {(e.producer, e.consumer): rank[e.producer] < rank[e.consumer] for e in precedence}
+    dividers = [units[h][0].divider for h in heads]
+    fixed = {i: units[h][0].phase for i, h in enumerate(heads) if units[h][0].phase is not None}
+    try:
+        constraints = build_constraints(precedence, unit_of, dividers, first)
+        system = PhaseSystem(heads, dividers, constraints, {i: p for i, p in fixed.items() if p is not None})
+        system.check()
+    except PrecedenceError as exc:
+        raise ScheduleConfigError(str(exc)) from None
+    auto = [h for h in heads if units[h][0].phase is None]
+    auto_index = [heads.index(h) for h in auto]
+    budgets = [sum(m.budget_us for m in units[h]) for h in heads]
+
+    def repair(auto_phases: list[int]) -> list[int]:
+        full = [units[h][0].phase or 0 for h in heads]
+        for i, p in zip(auto_index, auto_phases, strict=True):
+            full[i] = p
+        fixed_full = system.repair(full, budgets)
+        return [fixed_full[i] for i in auto_index]
+
     offsets: dict[str, int] = {}
     variant, omega, sum_delta, certificate, reason = "", 0, 0, True, "no auto-phased tasks"
+    optimality, bound, solver_s, warning = "", 0, 0.0, ""
     if auto:
         taskset = TaskSet(tuple(
             Task(head, units[head][0].divider * tick_us, sum(m.budget_us for m in units[head])) for head in auto
         ), unit="us")
-        assignment = _best_gcdplus_for_ticks(taskset, tick_us) if method == "gcdplus" else assign(taskset, method)
+        if method in ("gcdplus", "optimal"):
+            assignment = _best_gcdplus_for_ticks(taskset, tick_us, repair if constraints else None)
+        else:
+            assignment = assign(taskset, method)
+            phases = [(o // tick_us) % (t.period // tick_us) for o, t in zip(assignment.offsets, taskset.tasks, strict=True)]
+            moved = repair(phases) if constraints else phases
+            assignment = Assignment(method, tuple(o if a == m else m * tick_us for o, a, m in
+                                                  zip(assignment.offsets, phases, moved, strict=True)))
         offsets = dict(zip(auto, assignment.offsets, strict=True))
         detail = assignment.detail
         if isinstance(detail, GcdPlusResult):
             variant, omega, sum_delta = detail.order, detail.omega, detail.sum_delta
             certificate, reason = detail.certificate, detail.certificate_reason
+            if constraints and not certificate and detail.max_wcet <= omega and sum_delta <= omega:
+                reason = "no zero-interference guarantee: precedence moved GCD+ phases"
         else:
             omega = gcd_all(t.period for t in taskset.tasks)
             certificate, reason = False, f"method {method} gives no certificate"
+        if method == "optimal":
+            offsets, optimality, bound, solver_s, warning = _optimal_offsets(
+                heads, units, offsets, tick_us, constraints, fixed, time_limit_s)
+            if not warning:
+                variant, certificate = "", False
+                reason = (f"worst tick budget sum {'proven optimal' if optimality == 'optimal' else 'best found'}, "
+                          f"lower bound {bound} µs (CP-SAT, {solver_s:.2f} s)")
+            else:
+                method = "gcdplus"
     for head, members in units.items():
         if members[0].phase is not None:
             offsets[head] = members[0].phase * tick_us
@@ -215,7 +326,7 @@ def build_schedule(tick_us: int, method: str, specs: Sequence[TaskSpec], chains:
         head = chain_of.get(spec.name, (spec.name,))[0]
         offset = offsets[head]
         phase = (offset // tick_us) % spec.divider
-        key = (GROUPS.index(spec.group), offset % tick_us, position.get(spec.name, 0), spec.name)
+        key = (*rank[spec.name], offset % tick_us, position.get(spec.name, 0), spec.name)
         rows.append((key, spec, phase, offset))
     rows.sort(key=lambda r: r[0])
     tasks = tuple(
@@ -224,13 +335,37 @@ def build_schedule(tick_us: int, method: str, specs: Sequence[TaskSpec], chains:
     )
     _, loads = cycle_loads([t.divider * tick_us for t in tasks], [t.budget_us for t in tasks],
                            [t.phase * tick_us for t in tasks], cycle=tick_us)
-    return TickSchedule(tick_us, method, variant, omega, sum_delta, certificate, reason, int(loads.max()), tasks)
+    return TickSchedule(tick_us, method, variant, omega, sum_delta, certificate, reason, int(loads.max()), tasks,
+                        optimality, bound, solver_s, warning, tuple(precedence))
+
+
+def _optimal_offsets(heads: Sequence[str], units: Mapping[str, Sequence[TaskSpec]], hint_offsets: Mapping[str, int],
+                     tick_us: int, constraints: Sequence[Constraint], fixed: Mapping[int, int | None],
+                     time_limit_s: float) -> tuple[dict[str, int], str, int, float, str]:
+    """Exact phases (optimal.py) warm-started with GCD+'s; (offsets, status, bound, seconds, warning)."""
+    from .optimal import SolverInputError, solve_executive  # local: OR-Tools loads only for this method
+
+    dividers = [units[h][0].divider for h in heads]
+    budgets = [sum(m.budget_us for m in units[h]) for h in heads]
+    hint = [(hint_offsets[h] // tick_us) % d if h in hint_offsets else (fixed.get(i) or 0)
+            for i, (h, d) in enumerate(zip(heads, dividers, strict=True))]
+    pinned = {i: p for i, p in fixed.items() if p is not None}
+    try:
+        solution = solve_executive(dividers, budgets, constraints, pinned, time_limit_s, hint)
+    except SolverInputError as exc:
+        return dict(hint_offsets), "", 0, 0.0, f"phase_method optimal: {exc}; using GCD+"
+    if solution.phases is None:
+        return (dict(hint_offsets), "", solution.bound, solution.wall_s,
+                f"phase_method optimal: no solution within {time_limit_s:g} s ({solution.status.value}); using GCD+")
+    offsets = {h: solution.phases[i] * tick_us for i, h in enumerate(heads) if h in hint_offsets}
+    return offsets, solution.status.value, solution.bound, solution.wall_s, ""
 
 
 def schedule_from_config(doc: object, method_override: str | None = None) -> TickSchedule:
     tick_us, method, specs, chains = parse_config(doc)
+    assert isinstance(doc, Mapping)  # parse_config checked it
     if method_override is not None:
         if method_override not in PHASE_METHODS:
             raise ScheduleConfigError(f"phase method must be one of {', '.join(PHASE_METHODS)}")
         method = method_override
-    return build_schedule(tick_us, method, specs, chains)
+    return build_schedule(tick_us, method, specs, chains, parse_precedence(doc, specs), parse_time_limit(doc))
