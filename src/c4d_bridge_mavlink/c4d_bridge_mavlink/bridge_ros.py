@@ -540,7 +540,8 @@ class RosSide:
             if reply is None or len(reply.values) != len(names):
                 self.live_asked.discard(node_name)  # ask again
                 return
-            self.params.node_values(node_name, {n: parameter_value_to_python(v) for n, v in zip(names, reply.values)})
+            values = zip(names, reply.values, strict=True)
+            self.params.node_values(node_name, {n: parameter_value_to_python(v) for n, v in values})
 
         self._call(client, GetParameters.Request(names=names), answered)
 
