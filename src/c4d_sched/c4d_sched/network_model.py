@@ -263,21 +263,23 @@ def network_from_dict(doc: Any) -> Network:
     return Network(unit, ends, switches, rates, tuple(flows), sf, _crossings(flows))
 
 
+def _yaml_problem(exc: yaml.YAMLError) -> str:
+    """One line for a PyYAML error: where the parser noticed it and what it was."""
+    mark = getattr(exc, "problem_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    return f"YAML syntax error{where}: {getattr(exc, 'problem', None) or 'syntax error'}"
+
+
 def load_network(path: str | Path) -> Network:
-    """Read and validate a network YAML file; NetworkError (one line) on any problem."""
+    """Read and validate a network YAML file; NetworkError (one line) on any problem.
+    (c4d_sched imports no other c4d package, hence its own reading rather than c4d_common's.)"""
     p = Path(path)
     try:
-        text = p.read_text()
+        return network_from_dict(yaml.safe_load(p.read_text()))
     except OSError as exc:
         raise NetworkError(f"cannot read {p}: {exc.strerror}") from None
-    try:
-        doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or "syntax error"
-        raise NetworkError(f"{p}: YAML syntax error{where}: {problem}") from None
-    return network_from_dict(doc)
+        raise NetworkError(f"{p}: {_yaml_problem(exc)}") from None
 
 
 def network_to_dict(net: Network) -> dict[str, Any]:
