@@ -8,8 +8,9 @@ serialized with rclpy), schemas, rosbag2 metadata and BagWriter as the recorder 
 vehicle is a kinematic model: take-off, a lawn-mower survey, land, with a seeded tracking lag,
 noise, battery drain (rising with `wear`, so a fleet shows an energy-per-km trend), executive
 statistics, captures and, in some flights, an RTL failsafe. `bulk` adds the IMU topics at the
-state rate (random samples, so they compress like real ones): files then have the size of a
-real recording of that length (~0.3 MB/s at 500 Hz).
+state rate and fills the estimate's covariances (random samples, so they compress like real
+ones): files then have ~75 % of the size of a real SITL recording of that length (0.23 vs 0.3
+MB/s at 500 Hz), with the topics the catalog decodes at their real rates.
 """
 
 from __future__ import annotations
@@ -121,6 +122,9 @@ def write_flight(path: str | Path, spec: FlightSpec) -> Path:
         state.position.x, state.position.y, state.position.z = px, py, pz
         state.velocity.x, state.velocity.y, state.velocity.z = ((x - ax) / dt, (y - ay) / dt, (z - az) / dt)
         state.orientation.w = 1.0
+        if spec.bulk:  # a real estimate's covariances change every sample (and do not compress away)
+            for name in ("position_covariance", "velocity_covariance", "attitude_covariance"):
+                setattr(state, name, [abs(rng.gauss(0.0, 0.01)) for _ in range(9)])
         put("/navigation/state", t, state)
         if spec.bulk:
             for topic in BULK:
