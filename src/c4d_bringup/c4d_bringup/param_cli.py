@@ -1,0 +1,72 @@
+"""`c4d param list | set NAME VALUE | reset` — a vehicle's stored tuning, offline.
+
+What: the core's live gains and limits (c4d_gnc.live_gains) of the vehicle the system config
+names (core parameter `vehicle`, or --vehicle): `list` prints each with the value the core will
+start with (the airframe's, or the stored change), unit and range; `set` checks a value as the
+core would (range, cross-field rules with the other stored values) and stores it; `reset`
+removes the vehicle's stored changes, so the next start uses the airframe's defaults.
+The store is the one the running core writes (c4d_common.tunable.VehicleStore: one YAML file per
+node and vehicle, written atomically under a lock), so the CLI and a running core never tear it.
+A running core does not re-read it: change a flying vehicle with `ros2 param set core NAME VALUE`
+or a GCS (MAVLink PARAM_SET); both persist the same way.
+"""
+
+from __future__ import annotations
+
+import math
+
+from c4d_common.tunable import TunableError, TunableTable, VehicleStore
+from c4d_gnc.core_config import CoreConfigError, load_core_config
+from c4d_gnc.live_gains import core_table
+
+from .system_config import ConfigError, SystemConfig
+
+
+def _table_and_store(config: SystemConfig, vehicle: str | None) -> tuple[TunableTable, VehicleStore]:
+    core = config.node("core")
+    params = core.parameters if core is not None else {}
+    name = vehicle or str(params.get("vehicle") or "")
+    if not name:
+        raise ConfigError("no vehicle name: give --vehicle NAME or set the core's parameter 'vehicle' in the system config")
+    conf = str(params.get("config") or "").replace("${config_dir}", str(config.path.parent))
+    airframe = str(params.get("airframe") or "").replace("${config_dir}", str(config.path.parent))
+    try:
+        cfg = load_core_config(conf or None, airframe or None)
+        return core_table(cfg.airframe), VehicleStore.of(name, "core")
+    except (CoreConfigError, TunableError) as exc:
+        raise ConfigError(str(exc)) from None
+
+
+def run(config: SystemConfig, action: str, vehicle: str | None, name: str | None, value: str | None) -> int:
+    """The `c4d param` subcommand; ConfigError (one line, exit 2) for anything unusable."""
+    table, store = _table_and_store(config, vehicle)
+    try:
+        stored = store.read()
+    except TunableError as exc:
+        raise ConfigError(str(exc)) from None
+    if action == "list":
+        print(f"# {store.path}{'' if store.path.exists() else ' (no stored changes)'}")
+        for t in table:
+            mark = "*" if t.name in stored else " "
+            shown = stored.get(t.name, t.default)
+            print(f"{mark} {t.name:34s} {shown:<10g} [{t.unit}] {t.low:g}..{t.high:g}  {t.description}")
+        return 0
+    if action == "reset":
+        removed = store.reset()
+        print(f"{store.path}: {'removed' if removed else 'nothing stored'}; the next start uses the airframe's values")
+        return 0
+    assert name is not None and value is not None
+    try:
+        number = float(value)
+    except ValueError:
+        raise ConfigError(f"{name}: {value!r} is not a number") from None
+    if not math.isfinite(number):
+        raise ConfigError(f"{name}: {value} is not finite")
+    current = {**table.defaults(), **{k: float(v) for k, v in stored.items() if k in table}}
+    reason = table.check({name: number}, current)
+    if reason:
+        raise ConfigError(reason)
+    store.update({name: number}, table.defaults())
+    print(f"{name} = {number:g} stored in {store.path} (applies at the next start; a running core: "
+          f"ros2 param set core {name} {number:g})")
+    return 0
