@@ -6,6 +6,8 @@
   `c4d_interfaces` — never each other: blocks meet on DDS topics and services only.
 - `c4d_bringup` may import shared packages and the configuration loaders of blocks
   (`CONFIG_LOADERS`), never a node module.
+- Tools (`c4d_resim`) compose blocks' ROS-free libraries offline: they may import shared packages and the
+  modules of `TOOL_SOURCES` (c4d_gnc, c4d_data) except their node modules (`*_node`); nothing imports a tool.
 - Client libraries (`c4d_client`) import only `c4d_interfaces` and ROS: a user's script needs nothing
   else of c4d.
 - No import cycle between files of src/ (function-level imports count).
@@ -26,7 +28,9 @@ SHARED = {"c4d_interfaces", "c4d_common", "c4d_ros", "c4d_sched"}
 BLOCKS = {"c4d_gnc", "c4d_sim", "c4d_mission", "c4d_health", "c4d_bridge_mavlink", "c4d_data", "c4d_offboard"}
 BRINGUP = "c4d_bringup"
 CLIENTS = {"c4d_client"}
-CONFIG_LOADERS = {"c4d_sim.sim_config"}
+TOOLS = {"c4d_resim"}
+TOOL_SOURCES = {"c4d_gnc", "c4d_data"}
+CONFIG_LOADERS = {"c4d_sim.sim_config", "c4d_gnc.core_config", "c4d_gnc.live_gains"}
 ROS_CLIENT = {"rclpy", "rosidl_runtime_py", "builtin_interfaces", "c4d_interfaces", "std_msgs", "sensor_msgs"}
 PACKAGES = sorted(p.parent.name for p in SRC.glob("*/setup.py"))
 
@@ -77,6 +81,11 @@ def violations(package: str, files: list[Path] | None = None) -> list[str]:
                 out.append(f"{where}: c4d_ros may use only c4d_common and c4d_interfaces")
             elif package in CLIENTS and top != "c4d_interfaces" and top.startswith("c4d_"):
                 out.append(f"{where}: client libraries import only c4d_interfaces and ROS")
+            elif top in TOOLS:
+                out.append(f"{where}: nothing imports a tool package")
+            elif package in TOOLS and top in BLOCKS and (top not in TOOL_SOURCES or name.split(".")[1:2] and
+                                                         name.split(".")[1].endswith("_node")):
+                out.append(f"{where}: tools import only the ROS-free modules of {sorted(TOOL_SOURCES)}, never a node")
             elif package in BLOCKS and top in BLOCKS:
                 out.append(f"{where}: block packages never import each other (meet on DDS)")
             elif package == BRINGUP and top in BLOCKS and not any(name == m or name.startswith(m + ".")
@@ -92,7 +101,7 @@ def test_package_imports_follow_the_layering(package: str) -> None:
 
 
 def test_every_python_package_has_a_layer() -> None:
-    layers = SHARED | BLOCKS | CLIENTS | {BRINGUP}
+    layers = SHARED | BLOCKS | CLIENTS | TOOLS | {BRINGUP}
     assert set(PACKAGES) <= layers, f"unclassified package(s): {set(PACKAGES) - layers}"
 
 
@@ -165,5 +174,19 @@ def test_the_checker_sees_a_cross_block_import(tmp_path: Path) -> None:
         client.write_text("import rclpy\nfrom c4d_interfaces.msg import VehicleStatus\nfrom c4d_ros.manifest import STATUS\n")
         assert [v.split(": ", 1)[1] for v in violations("c4d_client", [client])] == \
             ["client libraries import only c4d_interfaces and ROS"] * 2  # `from c4d_ros.manifest import STATUS` = 2 names
+        tool = tmp_path / "c4d_resim" / "c4d_resim" / "planted.py"
+        tool.parent.mkdir(parents=True)
+        tool.write_text("from c4d_gnc.navigation_node import PARAMS\nfrom c4d_mission.executor import MissionExecutor\n"
+                        "from c4d_gnc.ekf import NavigationEkf\n")
+        assert len([v for v in violations("c4d_resim", [tool]) if "tools import only" in v]) == 4  # 2 names each
+        assert any("nothing imports a tool" in v for v in violations("c4d_data", [
+            _planted(tmp_path, "c4d_data", "from c4d_resim.run import resimulate\n")]))
     finally:
         SRC = saved
+
+
+def _planted(root: Path, package: str, text: str) -> Path:
+    path = root / package / package / "planted2.py"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
