@@ -315,7 +315,9 @@ def test_scripted_gcs_session(graph, tmp_path, ros_node):
         values[m.param_id] = m
         if len(values) == m.param_count:
             break
-    assert len(values) == 9 and {"MPC_XY_CRUISE", "GF_MAX_HOR_DIST", "SIM_WIND_GUST"} <= set(values)
+    from c4d_bridge_mavlink.params import TABLE
+
+    assert len(values) == len(TABLE) and {"MPC_XY_CRUISE", "GF_MAX_HOR_DIST", "SIM_WIND_GUST", "MC_ROLLRATE_P"} <= set(values)
     gcs.conn.mav.param_set_send(1, 1, b"MPC_XY_CRUISE", 4.0, M.MAV_PARAM_TYPE_REAL32)
     assert gcs.recv("PARAM_VALUE", 5.0, lambda m: m.param_id == "MPC_XY_CRUISE").param_value == pytest.approx(4.0)
     gcs.conn.mav.param_set_send(1, 1, b"GF_MAX_HOR_DIST", 60.0, M.MAV_PARAM_TYPE_REAL32)

@@ -1,6 +1,7 @@
 """Issue 7 acceptance: stock MAVSDK-Python (the PyPI `mavsdk` 4.x native binding, no pymavlink on
 the GCS side) against the whole SITL graph through the c4d MAVLink bridge: it connects, sees
-health (global position, home) and a position, sets the take-off altitude (a parameter), arms,
+health (global position, home) and a position, sets the take-off altitude (a parameter), gets and
+sets the core's roll-rate gain MC_ROLLRATE_P with the param plugin (issue 20), arms,
 takes off, uploads a 4-waypoint mission, starts and flies it to the end, returns to launch, and
 the vehicle lands and disarms within 2 m of home; the flight modes MAVSDK decodes say RETURN_TO_LAUNCH
 during the return, LAND for its landing, HOLD once landed.
@@ -151,6 +152,14 @@ async def fly(port: int, s: Session, result: Path) -> dict:
 
         await s.step("set take-off altitude", action.set_takeoff_altitude(TAKEOFF_ALT), 15.0)
         assert await s.step("get take-off altitude", action.get_takeoff_altitude(), 15.0) == pytest.approx(TAKEOFF_ALT)
+        # issue 20: MAVSDK's param plugin on a live core gain (set through the core, echoed once applied; restored)
+        from mavsdk.asyncio.plugins.param import ParamAsync
+
+        param = ParamAsync(system)
+        assert await s.step("get MC_ROLLRATE_P", param.get_param_float("MC_ROLLRATE_P"), 15.0) == pytest.approx(22.0)
+        await s.step("set MC_ROLLRATE_P", param.set_param_float("MC_ROLLRATE_P", 24.0), 15.0)
+        out["rollrate_p_set"] = await s.step("get MC_ROLLRATE_P again", param.get_param_float("MC_ROLLRATE_P"), 15.0)
+        await s.step("restore MC_ROLLRATE_P", param.set_param_float("MC_ROLLRATE_P", 22.0), 15.0)
 
         # a c4d plan starts with its take-off (MAVSDK: vehicle_action TAKEOFF → MAV_CMD_NAV_TAKEOFF); flown
         # in the air it is passed at once. A speed (→ DO_CHANGE_SPEED) rides on the first waypoint.
@@ -340,6 +349,7 @@ def run_gcs(graph, tmp_path, *extra: str, name: str = "mavsdk", sample=None) -> 
 def test_mavsdk_session(graph, tmp_path):
     out, _, _ = run_gcs(graph, tmp_path)
     assert out["autopilot"] == "PX4"
+    assert out["rollrate_p_set"] == pytest.approx(24.0)  # the value the core applied, read back over MAVLink
     assert out["progress"][-1] == [len(WAYPOINTS) + 1] * 2 and out["finished"], out["progress"]
     assert math.dist(out["end_of_mission"], WAYPOINTS[-1]) < 1.5, out["end_of_mission"]
     assert out["landed_state"] == "ON_GROUND"
