@@ -256,7 +256,8 @@ def fly(seed: int, duration_s: float = 100.0, fault: Fault | None = None, extern
                     check = FixCheck(
                         t=t, position=fix, sigma_h=sample.sigma_h, sigma_v=sample.sigma_v, predicted=ekf.p.copy(),
                         predicted_cov=ekf.P[0:3, 0:3].copy(), velocity=ekf.v.copy(),
-                        inertial_position=shadow_p.copy(), inertial_velocity=shadow_v.copy(), external_position=ext)
+                        inertial_position=shadow_p.copy(), inertial_velocity=shadow_v.copy(), external_position=ext,
+                        gyro_bias_sigma=math.sqrt(max(ekf.P[9, 9], ekf.P[10, 10])))
                     verdict = monitor.check_fix(check)
                     result.calls.append(check)
                     result.verdicts.append((t, verdict))

@@ -45,6 +45,7 @@ class EkfConfig:
     position_valid_s: float = 1.0  # a position fix younger than this keeps the position valid
     gps_reset_after_s: float = 3.0  # after an outage this long, a fix the gate rejects resets the position
     zero_velocity_sigma: float = 0.05  # [m/s] zero-velocity update while the vehicle stands on the ground
+    unaided_velocity_sigma: float = 1.0  # [m/s] horizontal velocity pseudo-measurement (0) in flight without aiding; 0 = off
     home_fixes: int = 20  # GNSS fixes averaged to set home (the local frame's geodetic origin)
     heading_valid_s: float = 2.0
 
@@ -280,6 +281,22 @@ class NavigationEkf:
         H = np.zeros((3, 15))
         H[:, 3:6] = np.eye(3)
         return self._update(H, -self.v, np.eye(3) * self.cfg.zero_velocity_sigma**2)
+
+    def update_unaided_velocity(self) -> bool:
+        """Horizontal velocity pseudo-measurement of zero with a loose σ (`unaided_velocity_sigma`), applied
+        while the vehicle is held still in flight (a HOLD or LAND failsafe) and no horizontal source is fused
+        (PX4's EKF2 fuses a fake position for the same reason; NavigationFilter decides when).
+        Why: without horizontal aiding, tilt, gyro bias and accelerometer bias are unobservable; pure
+        strapdown integration then runs away cubically (5-15 m in 20 s of hover in the synthetic flight).
+        Held still, the loose zero keeps the velocity bounded and lets the accelerometer level the attitude
+        again (hover: 0.2-0.8 m after 24 s instead of 6-19 m); on a vehicle flying a path it would pull the
+        velocity towards zero, hence only while station keeping."""
+        sigma = self.cfg.unaided_velocity_sigma
+        if not self.aligned or sigma <= 0.0:
+            return False
+        H = np.zeros((2, 15))
+        H[0, 3] = H[1, 4] = 1.0
+        return self._update(H, -self.v[0:2], np.eye(2) * sigma**2)
 
     def update_baro(self, pressure: float) -> bool:
         altitude = altitude_at_pressure(pressure)

@@ -43,6 +43,8 @@ from enum import IntEnum, IntFlag
 
 import numpy as np
 
+from .ekf import GRAVITY
+
 
 class IntegrityState(IntEnum):
     """Values == c4d_interfaces GnssIntegrity.STATE_* (test_gnss_integrity checks)."""
@@ -89,6 +91,7 @@ class IntegrityConfig:
     inertial_alarm_m: float = 1.5  # [m] GNSS vs inertial displacement mismatch (at nominal accuracy)
     cusum_reference_m: float = 0.6  # [m] mismatch below this drains the drift CUSUM
     cusum_alarm_m_s: float = 1.0  # [m·s] CUSUM of the mismatch excess: alarm
+    inertial_bias_sigmas: float = 3.0  # k: the inertial thresholds widen by k x the mismatch an unconverged gyro bias explains
     external_alarm_m: float = 2.0  # [m] horizontal distance to the external source (floor)
     external_sigmas: float = 5.0  # ... or this many σ of the difference, whichever is larger
     external_sigma_m: float = 0.1  # [m] 1σ of the external source's position
@@ -131,6 +134,9 @@ class FixCheck:
     inertial_position: np.ndarray  # dead-reckoning shadow at t: IMU-only integration, never corrected by any update
     inertial_velocity: np.ndarray
     external_position: np.ndarray | None = None  # the healthy external source's map position at t; None without one
+    # [rad/s] 1σ of the estimate's roll/pitch gyro bias: unconverged (seconds after alignment: ~0.02), the
+    # attitude the shadow integrates with drifts, and so does the shadow (g·σ·T³/6 over a window T)
+    gyro_bias_sigma: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -162,6 +168,7 @@ class _Sample:
     inertial: np.ndarray
     inertial_velocity: np.ndarray
     velocity: np.ndarray
+    gyro_bias_sigma: float
 
 
 class GnssIntegrityMonitor:
@@ -271,7 +278,7 @@ class GnssIntegrityMonitor:
         sample = _Sample(t, np.asarray(fix.position, dtype=float)[:2].copy(),
                          np.asarray(fix.inertial_position, dtype=float)[:2].copy(),
                          np.asarray(fix.inertial_velocity, dtype=float)[:2].copy(),
-                         np.asarray(fix.velocity, dtype=float)[:2].copy())
+                         np.asarray(fix.velocity, dtype=float)[:2].copy(), fix.gyro_bias_sigma)
         window = self._window
         if window and t - window[-1].t > cfg.loss_timeout_s:
             window.clear()  # a gap: the displacement is compared over continuous fixes only
@@ -286,13 +293,17 @@ class GnssIntegrityMonitor:
             residual = np.array([s.fix - (s.inertial - dv * (s.t - start.t)) for s in window])
             mismatch = float(np.linalg.norm(residual[-n:].mean(axis=0) - residual[:n].mean(axis=0)))
         self._stats["inertial_mismatch_m"] = mismatch
-        score = mismatch / (cfg.inertial_alarm_m * scale)
+        # what an unconverged gyro bias explains over this window (a vehicle armed seconds after power-on:
+        # 1.6 m in SITL under load, a false SPOOFED at take-off before this margin)
+        span = t - start.t
+        margin = cfg.inertial_bias_sigmas * GRAVITY * start.gyro_bias_sigma * span**3 / 6.0
+        score = mismatch / (cfg.inertial_alarm_m * scale + margin)
         if score >= cfg.warning_fraction:
             self._mismatch_onset = min(self._mismatch_onset, start.t)
         else:
             self._mismatch_onset = math.inf
         last_t = self._last.t if self._last is not None else t
-        reference = cfg.cusum_reference_m * scale
+        reference = cfg.cusum_reference_m * scale + margin
         was = self._cusum
         # bounded at its alarm level: after a spoofing episode it drains in seconds, not minutes
         limit = cfg.cusum_alarm_m_s * scale

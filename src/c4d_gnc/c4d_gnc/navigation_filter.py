@@ -40,6 +40,8 @@ DEFAULT_SIGMA_H_M, DEFAULT_SIGMA_V_M = 1.0, 2.0  # GNSS accuracy when a fix repo
 TICK_S = 0.2  # integrity monitor tick and source-switch evaluation period (5 Hz, IMU clock)
 HORIZONTAL, VERTICAL = np.array([0, 1]), np.array([2])
 JOURNAL_S = 60.0  # [s] GNSS corrections kept for an undo
+HOME_GYRO_BIAS_SIGMA = 0.004  # [rad/s] roll/pitch gyro-bias σ below which home may be set (_settled)
+HOME_SETTLE_MAX_S = 10.0  # [s] ... or this long after alignment, converged or not
 EXTERNAL_MATCH_S = 0.3  # [s] an external sample this close to a fix is compared with it (integrity monitor)
 
 
@@ -100,6 +102,10 @@ class NavigationFilter:
         self.ekf = ekf
         self.cfg = cfg = config or NavigationConfig()
         self.on_ground = False  # disarmed = standing still: zero-velocity updates bound the drift
+        # commanded to stay put horizontally (a HOLD or LAND failsafe): without a horizontal source a loose
+        # zero-velocity pseudo-measurement then bounds the drift; never while the vehicle may be flying a path
+        # (on a 3 m/s circle it would cost 5 m in 6 s)
+        self.station_keeping = False
         self.imu_t: float | None = None  # sample time of the last IMU sample [s]
         self.imu_count = 0
         self.mag: Vec | None = None
@@ -125,6 +131,7 @@ class NavigationFilter:
         self._journal: deque[tuple[float, float, np.ndarray]] = deque()  # (fix t, applied at, δx (15))
         self._last_dx: np.ndarray | None = None
         self._tick_t = -math.inf
+        self._aligned_t = math.nan  # IMU time home collection first found the filter aligned
         self._step_pending: set[int] = set()  # selectors whose switch step is measured on the next fusion
         if cfg.origin is not None:
             ekf.origin = GeoOrigin(*cfg.origin)
@@ -147,14 +154,30 @@ class NavigationFilter:
         ekf.predict(gyro, accel, dt)
         self._push(t)
         self.imu_count += 1
-        if self.on_ground and self.imu_count % ZUPT_EVERY == 0:
-            ekf.update_zero_velocity()
+        if self.imu_count % ZUPT_EVERY == 0:
+            if self.on_ground:
+                ekf.update_zero_velocity()
+            elif self.station_keeping and self.initialised and self.horizontal.fusing(t) == NONE:
+                ekf.update_unaided_velocity()  # dead reckoning while held still: bound the drift (EKF docstring)
         omega = np.asarray(gyro) - ekf.bg
         self.alpha = 0.8 * self.alpha + 0.2 * (omega - self.omega) / dt
         self.omega = omega
         if t - self._tick_t >= TICK_S:
             self.tick(t)
         return True
+
+    def _settled(self) -> bool:
+        """Home (and so a valid position, and arming) waits until the roll/pitch gyro bias has converged
+        on the ground (zero-velocity updates: ~3 s after alignment), at most HOME_SETTLE_MAX_S. Why: a
+        vehicle that takes off earlier flies its first seconds on a drifting attitude — in SITL under load
+        that made the IMU-only shadow disagree with GNSS by 1.6 m (a false SPOOFED verdict at take-off)."""
+        ekf = self.ekf
+        if not ekf.aligned or self.imu_t is None:
+            return False
+        if math.isnan(self._aligned_t):
+            self._aligned_t = self.imu_t
+        sigma = math.sqrt(max(ekf.P[9, 9], ekf.P[10, 10]))
+        return sigma <= HOME_GYRO_BIAS_SIGMA or self.imu_t - self._aligned_t >= HOME_SETTLE_MAX_S
 
     def _push(self, t: float) -> None:
         ekf = self.ekf
@@ -250,6 +273,8 @@ class NavigationFilter:
         sigma_h = math.sqrt(var_h) if var_h > 0 else DEFAULT_SIGMA_H_M
         sigma_v = math.sqrt(var_v) if var_v > 0 else DEFAULT_SIGMA_V_M
         if ekf.origin is None:
+            if not self._settled():
+                return
             ekf.set_home(latitude, longitude, altitude)
             if ekf.origin is not None:
                 self.initialised = True
@@ -264,7 +289,8 @@ class NavigationFilter:
             z = z + ekf.v * max(0.0, self.imu_t - stamp)
         fix = FixCheck(t=stamp, position=z, sigma_h=sigma_h, sigma_v=sigma_v, predicted=row[P].copy(),
                        predicted_cov=ekf.P[0:3, 0:3].copy(), velocity=row[V].copy(), inertial_position=row[PI].copy(),
-                       inertial_velocity=row[VI].copy(), external_position=self._external_at(stamp, row))
+                       inertial_velocity=row[VI].copy(), external_position=self._external_at(stamp, row),
+                       gyro_bias_sigma=math.sqrt(max(ekf.P[9, 9], ekf.P[10, 10])))
         self._on_verdict(self.monitor.check_fix(fix))
         if not self.verdict.fuse and self.cfg.integrity_cut:
             return

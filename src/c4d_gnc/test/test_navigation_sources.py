@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from synthetic_flight import HOME, ExternalEmulator, SyntheticFlight
+from synthetic_flight import HOME, ExternalEmulator, Kinematics, SyntheticFlight
 
 from c4d_gnc.gnss_integrity import GnssIntegrityMonitor, IntegrityConfig, IntegrityState
 from c4d_gnc.navigation_filter import NavigationConfig
@@ -178,3 +178,31 @@ def test_spoofing_flagged_while_on_the_external_source_moves_nothing():
     assert flight.max_step(23.0, 31.0) < 0.1
     est, truth = flight.estimates[-1][1:]
     assert math.hypot(*(est - truth)[:2]) < 0.3
+
+
+def test_station_keeping_without_a_horizontal_source_bounds_the_dead_reckoning_drift():
+    """GNSS lost while hovering (no other horizontal source): held still by a HOLD/LAND failsafe, the
+    loose zero-velocity pseudo-measurement keeps the error under a metre for 20 s; pure strapdown
+    integration (not station keeping) runs away — the gyro bias left in tilt grows the error cubically."""
+    errors = {}
+    for keeping in (True, False):
+        flight = SyntheticFlight(NavigationConfig(horizontal_primary=GNSS, horizontal_secondary=NONE), external=None,
+                                 gnss_sigma_m=0.3, seed=0, kinematics=Kinematics(radius=0.0, omega=0.0, height=5.0))
+        flight.run(40.0)
+        flight.gnss_sigma_m = None  # lost
+        flight.filter.station_keeping = keeping
+        flight.run(60.0)
+        assert flight.filter.status().horizontal_source == NONE
+        errors[keeping] = max(e for t, e in flight.errors if t >= 40.0)
+    assert errors[True] < 1.0 and errors[False] > 5.0, errors
+
+
+def test_no_velocity_pseudo_measurement_while_flying_a_path():
+    """GNSS lost on a 3 m/s circle without station keeping: the estimate is not pulled towards rest
+    (the pseudo-measurement would cost metres within seconds there)."""
+    flight = SyntheticFlight(NavigationConfig(horizontal_primary=GNSS, horizontal_secondary=NONE), external=None,
+                             gnss_sigma_m=0.3, seed=0)
+    flight.run(40.0)
+    flight.gnss_sigma_m = None
+    flight.run(46.0)
+    assert max(e for t, e in flight.errors if t >= 40.0) < 1.5
