@@ -1,0 +1,276 @@
+"""Input consumption journal of the navigation and core nodes, for deterministic re-simulation (`resim`).
+
+ROS-free. Why: a recorded flight holds every input sample, but not which sample a node used when —
+navigation's callbacks interleave IMU, GNSS, baro, ... in DDS arrival order, the core's tick reads
+the newest gyro and state drained at its input phase, at a clock time no topic carries, and the
+commands it serves are service calls no recorder sees. The journal is that missing part, written by
+the nodes as they consume: one record per consumed input (identified by its sample stamp, not its
+content: the content is in the recording), the core's tick index and clock per tick, commands with
+their fields, fences with their bytes, live retunes; plus one snapshot of the node's ROS-free state
+(pickled) when the vehicle arms — the start point of a re-simulation (the file begins 1 s before arm;
+what happened since boot is not in it).
+
+Wire format (the payload of a std_msgs/UInt8MultiArray on `navigation/journal` / `gnc/journal`):
+  header  MAGIC (4 bytes) | kind (u8: JOURNAL or SNAPSHOT) | seq (u32: batch number, gaps = a lost batch)
+  JOURNAL  records: kind (u8) + kind-specific little-endian fields (RECORDS); stamps are integer
+           nanoseconds coded as int32 deltas against a per-channel base (BASE records re-anchor a
+           channel whose delta would not fit): ~5 bytes per IMU sample, ~14 per core tick, before zstd.
+  SNAPSHOT after_seq (u32: the last batch consumed before it) + pickle of the node's state.
+Snapshots are read back with a restricted unpickler (only c4d, numpy and plain container classes).
+"""
+
+from __future__ import annotations
+
+import io
+import pickle
+import struct
+from collections.abc import Iterator
+from typing import Any
+
+MAGIC = b"C4DJ"
+JOURNAL, SNAPSHOT = 0, 1
+HEADER = struct.Struct("<4sBI")
+AFTER = struct.Struct("<I")
+
+# channels of the delta-coded stamps
+CH_IMU, CH_GNSS, CH_BARO, CH_MAG, CH_RANGE, CH_EXT, CH_NOW, CH_GYRO, CH_STATE, CH_SURROUND = range(10)
+CH_SETPOINT = 10  # + source (c4d_common.vehicle.SetpointSource, < 6)
+CHANNELS = 16
+
+# record kinds: (name, struct of the fields after the kind byte)
+BASE = 0  # channel u8, absolute int64
+N_IMU, N_GNSS, N_BARO, N_MAG, N_RANGE, N_EXTERNAL, N_STATUS = 1, 2, 3, 4, 5, 6, 7
+C_TICK, C_GYRO, C_STATE, C_SETPOINT, C_COMMAND, C_SURROUNDINGS, C_FENCE, C_RETUNE = 16, 17, 18, 19, 20, 21, 22, 23
+EXTERNAL_ODOMETRY, EXTERNAL_POSE = 0, 1
+STATUS_ARMED, STATUS_STATION_KEEPING = 1, 2
+RECORDS: dict[int, struct.Struct] = {
+    BASE: struct.Struct("<Bq"),
+    N_IMU: struct.Struct("<i"), N_GNSS: struct.Struct("<Bi"), N_BARO: struct.Struct("<i"), N_MAG: struct.Struct("<i"),
+    N_RANGE: struct.Struct("<i"), N_EXTERNAL: struct.Struct("<BBi"),  # kind, valid stamp (0: unreadable), stamp
+    N_STATUS: struct.Struct("<B"),
+    C_TICK: struct.Struct("<Hi"),  # k - previous k, now
+    C_GYRO: struct.Struct("<i"), C_STATE: struct.Struct("<i"),
+    C_SETPOINT: struct.Struct("<Bii"),  # source, now, setpoint stamp
+    C_COMMAND: struct.Struct("<iBBBd"),  # now, command, mode, force, altitude
+    C_SURROUNDINGS: struct.Struct("<ii"),  # now, scan stamp
+    C_FENCE: struct.Struct("<I"),  # length of the serialized Geofence that follows
+    C_RETUNE: struct.Struct("<I"),  # length of the pickled {name: value} that follows
+}
+STAMP_CHANNEL = {N_IMU: CH_IMU, N_BARO: CH_BARO, N_MAG: CH_MAG, N_RANGE: CH_RANGE, C_GYRO: CH_GYRO,
+                 C_STATE: CH_STATE}
+INT32 = 1 << 31
+
+
+class JournalError(ValueError):
+    """A journal message that cannot be read (wrong magic, truncated record, unknown kind)."""
+
+
+def stamp_ns(sec: int, nanosec: int) -> int:
+    return sec * 1_000_000_000 + nanosec
+
+
+def stamp_s(ns: int) -> float:
+    """The float a node computes from the stamp (sec + nanosec * 1e-9): bit-identical."""
+    sec, nanosec = divmod(ns, 1_000_000_000)
+    return sec + nanosec * 1e-9
+
+
+class JournalWriter:
+    """Appends records to the current batch; `take()` returns the batch's payload (None when empty).
+
+    Cheap enough for the 500 Hz paths (~1 µs a record): a struct pack into a bytearray."""
+
+    def __init__(self) -> None:
+        self.buf = bytearray()
+        self.base = [0] * CHANNELS
+        self.seq = 0
+        self.k = 0
+
+    def _delta(self, channel: int, ns: int) -> int:
+        d = ns - self.base[channel]
+        if not -INT32 <= d < INT32:
+            self.buf += bytes((BASE,)) + RECORDS[BASE].pack(channel, ns)
+            d = 0
+        self.base[channel] = ns
+        return d
+
+    def stamp(self, kind: int, ns: int) -> None:
+        """A record whose only field is a stamp (N_IMU, N_BARO, N_MAG, N_RANGE, C_GYRO, C_STATE)."""
+        d = self._delta(STAMP_CHANNEL[kind], ns)
+        self.buf.append(kind)
+        self.buf += RECORDS[kind].pack(d)
+
+    def gnss(self, external: bool, ns: int) -> None:
+        d = self._delta(CH_GNSS, ns)
+        self.buf.append(N_GNSS)
+        self.buf += RECORDS[N_GNSS].pack(int(external), d)
+
+    def external(self, which: int, ns: int | None) -> None:
+        d = 0 if ns is None else self._delta(CH_EXT, ns)
+        self.buf.append(N_EXTERNAL)
+        self.buf += RECORDS[N_EXTERNAL].pack(which, ns is not None, d)
+
+    def status(self, flags: int) -> None:
+        self.buf.append(N_STATUS)
+        self.buf += RECORDS[N_STATUS].pack(flags)
+
+    def tick(self, k: int, now_ns: int) -> None:
+        dk = k - self.k
+        if not 0 <= dk < 1 << 16:
+            self.buf += bytes((BASE,)) + RECORDS[BASE].pack(CHANNELS, k)  # channel CHANNELS: the tick index
+            dk = 0
+        self.k = k
+        d = self._delta(CH_NOW, now_ns)
+        self.buf.append(C_TICK)
+        self.buf += RECORDS[C_TICK].pack(dk, d)
+
+    def setpoint(self, source: int, now_ns: int, ns: int) -> None:
+        dn, ds = self._delta(CH_NOW, now_ns), self._delta(CH_SETPOINT + source, ns)
+        self.buf.append(C_SETPOINT)
+        self.buf += RECORDS[C_SETPOINT].pack(source, dn, ds)
+
+    def command(self, now_ns: int, command: int, mode: int, force: bool, altitude: float) -> None:
+        dn = self._delta(CH_NOW, now_ns)
+        self.buf.append(C_COMMAND)
+        self.buf += RECORDS[C_COMMAND].pack(dn, command, mode, force, altitude)
+
+    def surroundings(self, now_ns: int, ns: int) -> None:
+        dn, ds = self._delta(CH_NOW, now_ns), self._delta(CH_SURROUND, ns)
+        self.buf.append(C_SURROUNDINGS)
+        self.buf += RECORDS[C_SURROUNDINGS].pack(dn, ds)
+
+    def blob(self, kind: int, data: bytes) -> None:
+        """C_FENCE (serialized Geofence) or C_RETUNE (pickled changes)."""
+        self.buf.append(kind)
+        self.buf += RECORDS[kind].pack(len(data))
+        self.buf += data
+
+    def take(self) -> bytes | None:
+        if not self.buf:
+            return None
+        payload = HEADER.pack(MAGIC, JOURNAL, self.seq) + self.buf
+        self.seq += 1
+        self.buf = bytearray()
+        self.base, self.k = [0] * CHANNELS, 0  # each batch decodes alone (a re-simulation starts mid-stream)
+        return bytes(payload)
+
+    def snapshot(self, state: Any) -> list[bytes]:
+        """The pending batch (if any) then a SNAPSHOT of `state` taken after it: publish both, in order."""
+        out = [p for p in (self.take(),) if p is not None]
+        out.append(HEADER.pack(MAGIC, SNAPSHOT, self.seq) + AFTER.pack(self.seq - 1 & 0xFFFFFFFF)
+                   + pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL))
+        return out
+
+
+def parse_header(payload: bytes) -> tuple[int, int]:
+    """(kind, seq) of a journal message; JournalError when it is not one."""
+    if len(payload) < HEADER.size:
+        raise JournalError(f"journal message of {len(payload)} bytes is shorter than its header")
+    magic, kind, seq = HEADER.unpack_from(payload)
+    if magic != MAGIC or kind not in (JOURNAL, SNAPSHOT):
+        raise JournalError("not a c4d journal message (magic or kind)")
+    return kind, seq
+
+
+def records(payload: bytes) -> Iterator[tuple]:
+    """The records of a JOURNAL payload as (kind, *absolute fields): stamps in integer ns (each batch
+    decodes alone: its channels start at 0), C_TICK with the tick index, C_FENCE / C_RETUNE with their bytes."""
+    base = [0] * (CHANNELS + 1)  # the last: the tick index
+    i, end = HEADER.size, len(payload)
+    try:
+        while i < end:
+            kind = payload[i]
+            i += 1
+            rec = RECORDS.get(kind)
+            if rec is None:
+                raise JournalError(f"unknown journal record kind {kind}")
+            fields = rec.unpack_from(payload, i)
+            i += rec.size
+            if kind == BASE:
+                base[fields[0]] = fields[1]
+                continue
+            if kind in STAMP_CHANNEL:
+                ch = STAMP_CHANNEL[kind]
+                base[ch] += fields[0]
+                yield kind, base[ch]
+            elif kind == N_GNSS:
+                base[CH_GNSS] += fields[1]
+                yield kind, bool(fields[0]), base[CH_GNSS]
+            elif kind == N_EXTERNAL:
+                if fields[1]:
+                    base[CH_EXT] += fields[2]
+                yield kind, fields[0], base[CH_EXT] if fields[1] else None
+            elif kind == N_STATUS:
+                yield kind, fields[0]
+            elif kind == C_TICK:
+                base[CHANNELS] += fields[0]
+                base[CH_NOW] += fields[1]
+                yield kind, base[CHANNELS], base[CH_NOW]
+            elif kind == C_SETPOINT:
+                base[CH_NOW] += fields[1]
+                base[CH_SETPOINT + fields[0]] += fields[2]
+                yield kind, fields[0], base[CH_NOW], base[CH_SETPOINT + fields[0]]
+            elif kind == C_COMMAND:
+                base[CH_NOW] += fields[0]
+                yield kind, base[CH_NOW], fields[1], fields[2], bool(fields[3]), fields[4]
+            elif kind == C_SURROUNDINGS:
+                base[CH_NOW] += fields[0]
+                base[CH_SURROUND] += fields[1]
+                yield kind, base[CH_NOW], base[CH_SURROUND]
+            else:  # C_FENCE, C_RETUNE
+                n = fields[0]
+                if i + n > end:
+                    raise JournalError("truncated journal record")
+                yield kind, bytes(payload[i:i + n])
+                i += n
+    except struct.error:
+        raise JournalError("truncated journal record") from None
+
+
+SAFE_MODULES = ("c4d_gnc.", "c4d_common.", "c4d_sched.", "numpy", "collections", "builtins", "copyreg", "math",
+                "enum", "_collections_abc", "datetime", "re", "pathlib")
+UNSAFE_BUILTINS = {"eval", "exec", "compile", "open", "__import__", "getattr", "setattr", "delattr", "globals",
+                   "locals", "vars", "input", "breakpoint", "exit", "quit", "memoryview"}
+
+
+class _SafeUnpickler(pickle.Unpickler):
+    """Resolves only c4d, numpy and plain container classes: a crafted file cannot run code."""
+
+    def find_class(self, module: str, name: str) -> Any:
+        if not any(module == m.rstrip(".") or module.startswith(m) for m in SAFE_MODULES) or (
+                module == "builtins" and name in UNSAFE_BUILTINS):
+            raise JournalError(f"snapshot refers to {module}.{name}, which a c4d snapshot never holds")
+        return super().find_class(module, name)
+
+
+def read_snapshot(payload: bytes) -> tuple[int, Any]:
+    """(after_seq, state) of a SNAPSHOT payload; JournalError when unreadable."""
+    kind, _ = parse_header(payload)
+    if kind != SNAPSHOT or len(payload) < HEADER.size + AFTER.size:
+        raise JournalError("not a journal snapshot")
+    (after,) = AFTER.unpack_from(payload, HEADER.size)
+    try:
+        return after, _SafeUnpickler(io.BytesIO(payload[HEADER.size + AFTER.size:])).load()
+    except JournalError:
+        raise
+    except Exception as exc:  # whatever a damaged pickle raises: one line
+        raise JournalError(f"unreadable snapshot: {type(exc).__name__}: {exc}") from None
+
+
+_CDR_STAMP = struct.Struct("<iI")  # header.stamp right after the 4-byte CDR encapsulation (little endian)
+
+
+def cdr_stamp_ns(raw: bytes) -> int:
+    """The header stamp [ns] of a serialized stamped message (its first field)."""
+    sec, nanosec = _CDR_STAMP.unpack_from(raw, 4)
+    return sec * 1_000_000_000 + nanosec
+
+
+def safe_loads(data: bytes) -> Any:
+    """Unpickle with the restricted unpickler (C_RETUNE records); JournalError when unreadable."""
+    try:
+        return _SafeUnpickler(io.BytesIO(data)).load()
+    except JournalError:
+        raise
+    except Exception as exc:
+        raise JournalError(f"unreadable journal record: {type(exc).__name__}: {exc}") from None

@@ -1,0 +1,1 @@
+"""c4d_resim: deterministic re-simulation of recorded flights (docs/data.md § Re-simulation)."""
