@@ -8,7 +8,7 @@
 - hovering, a scripted roll step (OFFBOARD, attitude level, +-15 deg) is flown with the bundled
   rate P gain, a MAVLink PARAM_SET doubles MC_ROLLRATE_P (PARAM_VALUE echoes 44), the same step
   is flown again: the roll response changes as the linear model of the roll loop predicts
-  (`roll_step_model`, numbers in docs/parameters.md): less overshoot and a shorter 10-50 % rise;
+  (c4d_gnc.rate_loop_model, numbers in docs/parameters.md): less overshoot and a shorter 10-50 % rise;
 - the core restarted with the same vehicle name starts with the doubled gain (restored from its
   per-vehicle store under XDG_DATA_HOME, here a temporary directory).
 """
@@ -26,6 +26,7 @@ import pytest
 from c4d_testing import call_service, installed_executable, spin_for
 
 from c4d_common import quat
+from c4d_gnc.rate_loop_model import step_metrics, step_response
 
 VEHICLE = "live_params_test"
 STEP = math.radians(15.0)
@@ -33,38 +34,9 @@ PLATEAU_S = 0.7
 HOVER = 1.5 * 9.80665 / (4 * 9.0)  # quad_x: weight / total max thrust
 
 
-def roll_step_model(kp: float, kd: float = 0.5, ka: float = 9.0, tau_m: float = 0.03, dt: float = 0.002,
-                    step: float = STEP, max_rate: float = math.radians(220.0)) -> tuple[float, float]:
-    """Linear model of the roll loop: attitude P (ω_sp = 2·ka·sin(e/2), limited), rate PD on the gyro
-    (α_cmd = kp·(ω_sp − ω) − kd·ω̇; the I term is too slow to matter in 0.3 s), one tick of delay,
-    first-order motors (tau_m), rigid body (ω̇ = α). Returns (overshoot fraction, 10-50 % rise [s])."""
-    phi = w = w_prev = a = 0.0
-    delayed = 0.0
-    trace = []
-    for k in range(int(0.8 / dt)):
-        w_sp = max(-max_rate, min(max_rate, 2.0 * ka * math.sin((step - phi) / 2.0)))
-        a_cmd = kp * (w_sp - w) - kd * (w - w_prev) / dt
-        w_prev = w
-        a += (delayed - a) * dt / tau_m
-        delayed = a_cmd
-        w += a * dt
-        phi += w * dt
-        trace.append((k * dt, phi))
-    return step_metrics(trace, 0.0, step)
-
-
-def step_metrics(trace: list[tuple[float, float]], start: float, end: float) -> tuple[float, float]:
-    """(overshoot as a fraction of the step, time from 10 % to 50 % of the step) of a roll trace."""
-    size = end - start
-    progress = [(t, (v - start) / size) for t, v in trace]
-
-    def crossing(level: float) -> float:
-        for (t0, p0), (t1, p1) in zip(progress, progress[1:], strict=False):
-            if p0 < level <= p1:
-                return t0 + (level - p0) / (p1 - p0) * (t1 - t0)
-        return math.nan
-
-    return max(p for _, p in progress) - 1.0, crossing(0.5) - crossing(0.1)
+def roll_step_model(kp: float) -> tuple[float, float]:
+    """(overshoot, 10-50 % rise [s]) the linear model (c4d_gnc.rate_loop_model) predicts for a STEP roll step."""
+    return step_metrics(step_response(kp, step=STEP), 0.0, STEP)
 
 
 def free_udp_port() -> int:
