@@ -22,6 +22,7 @@ from .gcdplus import GcdPlusResult
 from .methods import METHODS, assign
 from .model import Assignment, TaskSet, TaskSetError
 from .network_cli import add_network_parser
+from .optimal_cli import add_optimal_parsers
 from .taskio import load_taskset
 
 
@@ -220,6 +221,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="sched-experiment")
     p.set_defaults(func=cmd_experiment)
     add_network_parser(sub)
+    add_optimal_parsers(sub)
     return parser
 
 
