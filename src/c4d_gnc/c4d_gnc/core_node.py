@@ -96,8 +96,8 @@ PARAMS = {
                    read_only=True),
     "airframe": Spec("", "airframe, overrides the config's [name in config/airframes or YAML file path]; empty: the config's",
                      read_only=True),
-    "phase_method": Spec("", "task phase assignment, overrides the config's [gcdplus | paparazzi | zero]; empty: the config's",
-                         read_only=True),
+    "phase_method": Spec("", "task phase assignment, overrides the config's [gcdplus | optimal | paparazzi | zero]; "
+                             "empty: the config's", read_only=True),
     "imu_topic": Spec(P_IMU.name, "gyro source of the rate loop [topic name]", read_only=True),
     "log_table": Spec(False, "print the profiler table with each report [bool]", read_only=True),
     "rt_priority": node_runtime.RT_PRIORITY,
@@ -379,6 +379,8 @@ class CoreNode:
             f"{self.cfg.executive_name}: {1e6 / schedule.tick_us:.0f} Hz, {len(schedule.tasks)} tasks, phases by "
             f"{schedule.method}{variant}, max tick load {schedule.max_tick_load_us} µs of {schedule.tick_us}; "
             f"{schedule.certificate_reason}; airframe {self.cfg.airframe.name}")
+        if schedule.warning:  # e.g. phase_method optimal found nothing in its time limit: GCD+ phases instead
+            self.log.warning(schedule.warning)
         if self.lockstep:
             self.log.info("LOCKSTEP: ticks follow the sim's simulated time (/clock), each waits for its step's inputs")
             self.executive.start(t0_ns=self._wait_for_sim_time())

@@ -113,6 +113,8 @@ def schedule_msg(schedule: TickSchedule, executor: str, now: float) -> ScheduleT
     msg.sum_delta_us = float(schedule.sum_delta_us)
     msg.certificate_holds = schedule.certificate
     msg.max_tick_load_us = float(schedule.max_tick_load_us)
+    msg.optimality = schedule.optimality
+    msg.lower_bound_us = float(schedule.lower_bound_us)
     msg.entries = [ScheduleEntry(name=t.name, group=t.group, divider=t.divider, phase=t.phase, order=t.order,
                                  offset_us=float(t.offset_us), budget_us=float(t.budget_us)) for t in schedule.tasks]
     return msg
