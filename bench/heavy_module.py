@@ -77,7 +77,7 @@ def main() -> None:
           f"({', '.join(f'{n} {c} µs @ {r} Hz' for n, _, r, c in USER_TASKS)}), {args.seconds:.0f} s per method")
     print(f"{'phases':<11}{'max tick budget µs':>19}{'ticks':>8}{'overruns':>10}{'skipped':>9}{'busiest tick µs':>17}"
           f"{'p99 jitter µs':>15}")
-    for method in ("zero", "paparazzi", "gcdplus"):
+    for method in ("zero", "paparazzi", "gcdplus", "optimal"):
         r = run(method, args.seconds)
         print(f"{r['method']:<11}{r['budget_max']:>19}{r['ticks']:>8}{r['overruns']:>10}{r['skipped']:>9}"
               f"{r['busiest']:>17.0f}{r['p99']:>15.1f}", flush=True)
