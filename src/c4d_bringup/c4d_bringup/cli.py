@@ -3,6 +3,7 @@
     c4d up     [--config SYSTEM.yaml] [--run-dir DIR]
     c4d fly    --mission FILE [--config SYSTEM.yaml] [--run-dir DIR] [--timeout S] [--no-report]
     c4d status [--config SYSTEM.yaml] [--wait S]
+    c4d param  list | set NAME VALUE | reset  [--config SYSTEM.yaml] [--vehicle NAME]   (docs/parameters.md)
 
 The system config defaults to the installed config/sitl.yaml of c4d_bringup. ROS_DOMAIN_ID
 comes from the environment. Bad input (unknown node names, missing files, bad YAML, an
@@ -34,7 +35,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="c4d", description="Bring up, fly and inspect the c4d ROS 2 graph.")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="{up,fly,status}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="{up,fly,status,param}")
     config_help = "system YAML (nodes, parameters, platform); default: the installed c4d_bringup/config/sitl.yaml"
     up = sub.add_parser("up", help="start the whole graph and supervise it until Ctrl-C/SIGTERM")
     up.add_argument("--config", type=Path, help=config_help)
@@ -46,6 +47,12 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument("--timeout", type=float, help="seconds of flight before a land command (default: 3 x the plan "
                                                     "estimate + 60)")
     fly.add_argument("--no-report", action="store_true", help="skip the analysis report")
+    param = sub.add_parser("param", help="a vehicle's stored gains and limits: list, set NAME VALUE, reset to the airframe's")
+    param.add_argument("action", choices=("list", "set", "reset"))
+    param.add_argument("name", nargs="?", help="set: parameter name (c4d param list)")
+    param.add_argument("value", nargs="?", help="set: value")
+    param.add_argument("--config", type=Path, help=config_help)
+    param.add_argument("--vehicle", help="vehicle name (default: the core's parameter 'vehicle' in the system config)")
     status = sub.add_parser("status", help="one screen of the live graph")
     status.add_argument("--config", type=Path, help=config_help)
     status.add_argument("--wait", type=float, default=5.0,
@@ -102,6 +109,12 @@ def main(argv: list[str] | None = None) -> int:
         return fail(str(exc))
     try:
         config = load_system_config(args.config or default_config_path())
+        if args.command == "param":
+            from .param_cli import run as param
+
+            if (args.action == "set") != (args.name is not None and args.value is not None):
+                raise ConfigError("usage: c4d param set NAME VALUE (list and reset take no name)")
+            return param(config, args.action, args.vehicle, args.name, args.value)
         if args.command == "status":
             if not math.isfinite(args.wait) or args.wait < 0:
                 raise ConfigError("--wait must be >= 0")
