@@ -1,0 +1,64 @@
+#!/usr/bin/env python3
+"""Re-simulation speed: navigation (EKF) + GNC core re-run over a recorded flight, as a multiple of real time.
+
+For each of `--rounds` rounds, `resimulate()` (c4d_resim.run) over the flight's whole journal: the
+time of navigation alone (its generator's share) and of navigation + core, against the flight time
+re-simulated (the core's snapshot to its last journalled tick). Loading and indexing the MCAP are
+timed apart (not part of the re-simulation). Prints medians side by side, the ratio to the 20x target,
+and the platform-stall probe's worst oversleep (a stall there is the machine's, not c4d's).
+
+Run under the graph lock: `flock /tmp/c4d_graph.lock python bench/resim_speed.py FLIGHT.mcap [--rounds 5]`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "test" / "support"))
+from stall_probe import StallProbe  # noqa: E402
+
+from c4d_resim import flight as flight_module  # noqa: E402
+from c4d_resim.run import resimulate  # noqa: E402
+
+TARGET = 20.0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("flight", help="flight MCAP recorded with journals")
+    parser.add_argument("--rounds", type=int, default=5)
+    args = parser.parse_args(argv)
+    if args.rounds < 1:
+        parser.error("--rounds must be >= 1")
+    loads, walls, navs = [], [], []
+    flight_s = 0.0
+    probe = StallProbe()
+    try:
+        for _ in range(args.rounds):
+            t0 = time.perf_counter()
+            flight_module.load(args.flight)
+            loads.append(time.perf_counter() - t0)
+            r = resimulate(args.flight)
+            flight_s = r.flight_s
+            walls.append(r.wall_s)
+            navs.append(r.nav_wall_s)
+    finally:
+        stalls = probe.stop()
+    wall, nav, load = statistics.median(walls), statistics.median(navs), statistics.median(loads)
+    print(f"re-simulation of {Path(args.flight).name}: {flight_s:.1f} s of flight, {args.rounds} rounds (medians)")
+    print(f"{'what':<22} {'wall s':>8} {'x real time':>12} {'vs 20x':>8}")
+    for name, s in (("navigation", nav), ("core", wall - nav), ("navigation + core", wall)):
+        print(f"{name:<22} {s:>8.3f} {flight_s / s:>12.1f} {flight_s / s / TARGET:>7.2f}x")
+    print(f"{'load + index (apart)':<22} {load:>8.3f}")
+    worst = max((s for _, s in stalls), default=0.0)
+    print(f"platform-stall probe: worst oversleep {worst:.2f} ms over {len(stalls)} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
