@@ -262,7 +262,10 @@ def main(argv: list[str] | None = None) -> int:
         except sqlite3.Error as exc:
             print(f"catalog: error: SQL: {exc}", file=sys.stderr)
             return 1
-        print(format_table(names, rows))
+        try:
+            print(format_table(names, rows), flush=True)
+        except BrokenPipeError:  # `catalog --sql ... | head`: the reader has what it wanted
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 
