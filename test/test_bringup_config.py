@@ -140,11 +140,11 @@ def test_prepare_run_writes_ros_parameter_files(tmp_path):
     assert payload.argv[0] == installed_executable("c4d_mission", "payload")
     assert payload.argv[1:3] == ("--ros-args", "--params-file")
     assert yaml.safe_load(Path(payload.argv[3]).read_text()) == \
-        {"/**": {"ros__parameters": {"output_dir": str(tmp_path / "run" / "captures")}}}
+        {"/**": {"ros__parameters": {"output_dir": str(tmp_path / "run" / "captures"), "autostart": False}}}
     assert yaml.safe_load((tmp_path / "run" / "params" / "sim.yaml").read_text())["/**"]["ros__parameters"] == \
-        {"fault.gps_loss": False}
+        {"fault.gps_loss": False, "autostart": False}  # managed nodes: c4d up's lifecycle manager drives them
     health = next(s for s in specs if s.name == "health")
-    assert health.argv == (installed_executable("c4d_health", "health"),) and health.log_path == tmp_path / "run/logs/health.log"
+    assert health.argv[0] == installed_executable("c4d_health", "health") and health.log_path == tmp_path / "run/logs/health.log"
     assert (payload.restart.mode, payload.critical, specs[0].critical) == ("always", False, True)
 
 
@@ -170,6 +170,7 @@ def test_launch_plan_is_the_same_graph_as_c4d_up(tmp_path):
     assert [(e.package, e.executable) for e in plan.entries] == [CATALOGUE[s.name][:2] for s in specs]
     for entry, spec in zip(plan.entries, specs, strict=True):
         written = yaml.safe_load(Path(spec.argv[3]).read_text())["/**"]["ros__parameters"] if len(spec.argv) > 1 else {}
+        assert written.pop("autostart") is False  # c4d up's lifecycle manager drives them; ros2 launch: autostart
         assert {k: str(v).replace("run2", "run") for k, v in written.items()} == \
                {k: str(v) for k, v in entry.parameters.items()}
         assert entry.respawn == (spec.restart.mode != "never") and entry.critical == spec.critical

@@ -10,6 +10,7 @@ SIGINT/SIGTERM/SIGHUP (a second signal skips the grace period) or when a critica
 from __future__ import annotations
 
 import signal
+import subprocess
 import sys
 import time
 from collections.abc import Callable, Mapping
@@ -18,7 +19,7 @@ from pathlib import Path
 
 import yaml
 
-from .supervisor import Placement, ProcessSpec, RestartPolicy, Supervisor
+from .supervisor import Placement, ProcessSpec, RestartPolicy, Supervisor, _pdeathsig, signal_group
 from .system_config import (
     ConfigError,
     SystemConfig,
@@ -52,6 +53,8 @@ def prepare_run(config: SystemConfig, run_dir: Path, executables: Mapping[str, P
     executables = executables or resolve_all(config)
     variables = variables_for(config, run_dir)
     parameters = {node.name: node_parameters(node, variables, config.path) for node in config.nodes}
+    for name in config.managed():  # the lifecycle manager drives them (c4d_bringup.lifecycle_manager)
+        parameters[name] = {**parameters[name], "autostart": False}
     try:
         (run_dir / "params").mkdir(parents=True, exist_ok=True)
         (run_dir / "logs").mkdir(exist_ok=True)
@@ -77,9 +80,45 @@ def prepare_run(config: SystemConfig, run_dir: Path, executables: Mapping[str, P
     return specs
 
 
+def start_lifecycle_manager(config: SystemConfig, run_dir: Path, env: Mapping[str, str],
+                            phase: str | None) -> subprocess.Popen | None:
+    """The lifecycle manager (c4d_bringup.lifecycle_manager) in its own session, logging to logs/lifecycle_manager.log;
+    None when no node is managed."""
+    if not config.managed():
+        return None
+    argv = [sys.executable, "-m", "c4d_bringup.lifecycle_manager", "--config", str(config.path), "--run-dir", str(run_dir)]
+    with open(run_dir / "logs" / "lifecycle_manager.log", "ab") as out:
+        return subprocess.Popen(argv + (["--phase", phase] if phase else []), stdout=out, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, env=dict(env), start_new_session=True, preexec_fn=_pdeathsig)
+
+
+def manager_failure(run_dir: Path) -> str:
+    """The manager's `lifecycle: error: ...` line (the failed node and its reason)."""
+    try:
+        lines = (run_dir / "logs" / "lifecycle_manager.log").read_text(errors="replace").splitlines()
+    except OSError:
+        lines = []
+    return next((line for line in reversed(lines) if line.startswith("lifecycle: error: ")),
+                f"lifecycle: error: the lifecycle manager failed (see {run_dir / 'logs' / 'lifecycle_manager.log'})")
+
+
+def stop_process(proc: subprocess.Popen | None, timeout: float) -> None:
+    if proc is None:
+        return
+    if proc.poll() is None:
+        signal_group(proc.pid, signal.SIGINT)
+        try:
+            proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            pass
+    signal_group(proc.pid, signal.SIGKILL)
+    proc.wait()
+
+
 def run_graph(config: SystemConfig, specs: list[ProcessSpec], env: Mapping[str, str], run_dir: Path,
-              log: Callable[[str], None]) -> int:
-    """Supervise until a stop signal (exit 0) or a critical failure (exit 1); every child is gone on return."""
+              log: Callable[[str], None], phase: str | None = None) -> int:
+    """Supervise until a stop signal (exit 0) or a critical failure (exit 1) — a failed lifecycle transition
+    at start is one (its reason printed); every child is gone on return."""
     signals: list[int] = []
 
     def on_signal(signum, frame) -> None:
@@ -88,18 +127,24 @@ def run_graph(config: SystemConfig, specs: list[ProcessSpec], env: Mapping[str, 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     supervisor = Supervisor(specs, env, log=log, state_file=run_dir / "supervisor.json",
                             restart_spacing_s=config.restart_spacing_s)
+    manager = None
     try:
         supervisor.start()
         nodes = sum(len(s.members) or 1 for s in specs)
         log(f"up: {nodes} nodes in {len(specs)} processes, logs in {run_dir / 'logs'} (Ctrl-C to stop)")
+        manager = start_lifecycle_manager(config, run_dir, env, phase)
         while not signals and supervisor.failure is None:
             supervisor.poll()
+            if manager is not None and manager.poll() not in (None, 0):
+                log(manager_failure(run_dir))
+                supervisor.failure = "a lifecycle transition failed"
             time.sleep(0.1)
         if supervisor.failure:
             log(f"stopping: {supervisor.failure}")
         else:
             log(f"stopping on {signal.Signals(signals[0]).name}")
     finally:
+        stop_process(manager, 2.0)
         codes = supervisor.stop(config.shutdown_timeout_s, force=lambda: len(signals) > 1)
         for sig, handler in previous.items():
             signal.signal(sig, handler)

@@ -58,6 +58,8 @@ from c4d_common.config_file import yaml_error_text
 from c4d_common.share import share_file
 from c4d_ros.dds_profile import with_profile
 
+from .system_modes import ModesError, ModeTable, parse_modes
+
 # node name -> (package, executable, critical by default)
 CATALOGUE: dict[str, tuple[str, str, bool]] = {
     "sim": ("c4d_sim", "sim", True),
@@ -75,7 +77,7 @@ PLATFORMS = ("sitl", "hardware")
 RESTART_MODES = ("never", "on-failure", "always")
 DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT", "OFF")
 TOP_KEYS = {"platform", "discovery_range", "run_root", "shutdown_timeout_s", "restart_spacing_s", "compose", "nodes",
-            "lockstep"}
+            "lockstep", "modes"}
 LOCKSTEP_NODES = ("sim", "core")  # they take `lockstep: true`; every other node follows /clock (use_sim_time)
 RESTART_SPACING_S = 2.0  # default: a DDS participant's discovery burst is over well within 2 s on localhost
 NODE_KEYS = {"package", "executable", "critical", "restart", "max_restarts", "restart_window_s", "backoff_s",
@@ -146,6 +148,14 @@ class SystemConfig:
     nodes: tuple[NodeConfig, ...]
     restart_spacing_s: float = RESTART_SPACING_S  # minimum time between any two (re)starts [s]
     groups: tuple[GroupConfig, ...] = ()
+    modes: ModeTable | None = None  # system modes (c4d_bringup.system_modes); None: every node active in every phase
+
+    def managed(self) -> list[str]:
+        """The lifecycle-managed nodes in start order: the c4d nodes of the catalogue (docs/lifecycle.md)."""
+        return [n.name for n in self.nodes if CATALOGUE.get(n.name, ("", "", False))[:2] == (n.package, n.executable)]
+
+    def mode_table(self) -> ModeTable:
+        return self.modes or ModeTable(tuple(self.managed()), {})
 
     def node(self, name: str) -> NodeConfig | None:
         return next((n for n in self.nodes if n.name == name), None)
@@ -288,7 +298,11 @@ def parse_system_config(doc: Any, path: Path, cpus: frozenset[int] | None = None
         raise ConfigError(f"{w}: platform sitl needs the 'sim' node (or use platform: hardware)")
     if platform == "hardware" and "sim" in names:
         raise ConfigError(f"{w}: platform hardware must not run the 'sim' node")
-    return SystemConfig(path.resolve(), platform, discovery, run_root, timeout, tuple(nodes), spacing, groups)
+    config = SystemConfig(path.resolve(), platform, discovery, run_root, timeout, tuple(nodes), spacing, groups)
+    try:
+        return replace(config, modes=parse_modes(doc.get("modes"), config.managed(), w))
+    except ModesError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def _lockstep(value: Any, nodes: list[NodeConfig], platform: str, w: str) -> list[NodeConfig]:

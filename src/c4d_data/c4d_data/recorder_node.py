@@ -26,7 +26,7 @@ from rclpy.serialization import deserialize_message
 from std_srvs.srv import Trigger
 
 from c4d_interfaces.msg import VehicleStatus
-from c4d_ros import manifest
+from c4d_ros import lifecycle, manifest
 from c4d_ros.component import ComponentError, Host, run_components
 from c4d_ros.drain import Drainer
 from c4d_ros.params import ParameterError, Spec, declare_all
@@ -218,6 +218,19 @@ class RecorderNode:
         if budget_s > 0:
             time.sleep(budget_s)
 
+    def idle(self, budget_s: float) -> None:
+        """Inactive (c4d_ros.lifecycle): only the services (lifecycle, parameters, start/stop) are served."""
+        self.drainer.drain()
+        if budget_s > 0:
+            time.sleep(budget_s)
+
+    def release(self) -> None:
+        """Lifecycle cleanup: what is queued written, the file closed, the discovered subscriptions gone."""
+        self.drain()
+        self.recorder.shutdown()
+        for sub, _ in self.drainer.subscriptions:
+            self.node.destroy_subscription(sub)
+
     def close(self) -> int:
         """Take what is still queued, close the file, say so; 1 if a write failed, else 0."""
         self.drain()
@@ -228,17 +241,24 @@ class RecorderNode:
         return 1 if self.recorder.last_error else 0
 
 
-def component(rclpy, host: Host) -> RecorderNode:
+def component(rclpy, host: Host) -> lifecycle.ManagedComponent:
     """The recorder as a component (c4d_ros.component). Stop requests are caught by the runner
     from before rclpy starts: a SIGINT during start-up (rclpy and DDS initialising, the writer
     thread starting) used to raise KeyboardInterrupt wherever it landed — an unclean exit, and a
     possible hang tearing down a half-built DDS participant (issue 14 item 15)."""
-    node = rclpy.create_node("recorder")
+    node = lifecycle.create_node(rclpy, "recorder")
     try:
-        return RecorderNode(node, read_settings(node), own_process=not host.composed)
+        settings = read_settings(node)
     except (ParameterError, ValueError, OSError) as exc:
         node.destroy_node()
         raise ComponentError(str(exc)) from None
+
+    def build() -> RecorderNode:  # configure (c4d_ros.lifecycle): output directory, writer, services
+        try:
+            return RecorderNode(node, settings, own_process=not host.composed)
+        except (ParameterError, ValueError, OSError) as exc:
+            raise ComponentError(str(exc)) from None
+    return lifecycle.ManagedComponent("recorder", node, build, period_s=settings.drain_period_s, spun=False)
 
 
 def main(argv: list[str] | None = None) -> int:

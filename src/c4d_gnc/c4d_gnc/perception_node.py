@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
 
-from c4d_ros import cdr, gc_policy, node_runtime
+from c4d_ros import cdr, gc_policy, lifecycle, node_runtime
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.manifest import (
     BARO,
@@ -155,25 +155,31 @@ class PerceptionNode:
         self.pub_health.publish(array)
 
 
-def component(rclpy, host: Host) -> SpunNode:
+def component(rclpy, host: Host) -> lifecycle.ManagedComponent:
     """The perception node as a component (c4d_ros.component): alone or composed with others."""
-    node = rclpy.create_node(NAME)
+    node = lifecycle.create_node(rclpy, NAME)
     try:
         params = declare_all(node, PARAMS)
-        calibration = calibration_from(params)
-        airframe = surroundings.airframe_of(str(params["airframe"]))
     except ParameterError as exc:
         node.destroy_node()
         raise ComponentError(str(exc)) from None
-    side = rclpy.create_node(side_node_name(NAME))  # navigation/state sampled, never spun (c4d_ros.drain.LatestSampler)
-    try:
-        around = surroundings.SurroundingsNode(node, side, params, airframe)
-    except ParameterError as exc:
-        side.destroy_node()
-        node.destroy_node()
-        raise ComponentError(str(exc)) from None
-    return SpunNode(NAME, node, bool(params["events_executor"]), params["rt_priority"],
-                    (PerceptionNode(node, calibration), around), (side,))
+
+    def build() -> SpunNode:  # configure (c4d_ros.lifecycle): calibration and airframe checked, entities created
+        try:
+            calibration = calibration_from(params)
+            airframe = surroundings.airframe_of(str(params["airframe"]))
+        except ParameterError as exc:
+            raise ComponentError(str(exc)) from None
+        side = rclpy.create_node(side_node_name(NAME))  # navigation/state sampled, never spun (c4d_ros.drain.LatestSampler)
+        try:
+            around = surroundings.SurroundingsNode(node, side, params, airframe)
+        except ParameterError as exc:
+            side.destroy_node()
+            raise ComponentError(str(exc)) from None
+        return SpunNode(NAME, node, bool(params["events_executor"]), params["rt_priority"],
+                        (PerceptionNode(node, calibration), around), (side,))
+    return lifecycle.ManagedComponent(NAME, node, build, events_executor=bool(params["events_executor"]),
+                                      rt_priority=params["rt_priority"])
 
 
 def main(argv: list[str] | None = None) -> int:

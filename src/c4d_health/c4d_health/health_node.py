@@ -52,7 +52,7 @@ from c4d_interfaces.msg import (
 )
 from c4d_interfaces.msg import Geofence as GeofenceMsg
 from c4d_interfaces.srv import VehicleCommand
-from c4d_ros import manifest
+from c4d_ros import lifecycle, manifest
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.drain import LatestSampler
 from c4d_ros.params import ParameterError, Spec, declare_all
@@ -339,16 +339,18 @@ class HealthNode:
         self.pub_diagnostics.publish(array)
 
 
-def component(rclpy, host: Host) -> SpunNode:
+def component(rclpy, host: Host) -> lifecycle.ManagedComponent:
     """The health node as a component (c4d_ros.component): alone or composed with others."""
-    node = rclpy.create_node(NAME)
-    try:
-        config = HealthConfig.declare(node)
-    except (ParameterError, PolicyError) as exc:
-        node.destroy_node()
-        raise ComponentError(str(exc)) from None
-    side = rclpy.create_node(manifest.side_node_name(NAME))
-    return SpunNode(NAME, node, False, 0, HealthNode(node, side, config), (side,))
+    node = lifecycle.create_node(rclpy, NAME)
+
+    def build() -> SpunNode:  # configure (c4d_ros.lifecycle): parameters and the failsafe policy file read and checked
+        try:
+            config = HealthConfig.declare(node)
+        except (ParameterError, PolicyError) as exc:
+            raise ComponentError(str(exc)) from None
+        side = rclpy.create_node(manifest.side_node_name(NAME))
+        return SpunNode(NAME, node, False, 0, HealthNode(node, side, config), (side,))
+    return lifecycle.ManagedComponent(NAME, node, build)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -63,6 +63,7 @@ from c4d_interfaces.msg import (
 )
 from c4d_interfaces.msg import Geofence as GeofenceMsg
 from c4d_interfaces.srv import DownloadMission, MissionControl, SetGeofence, UploadMission, VehicleCommand
+from c4d_ros import lifecycle
 from c4d_ros import manifest as m
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.drain import LatestSampler
@@ -453,18 +454,24 @@ def setpoint_msg(t: float, position: tuple[float, float, float], velocity: tuple
     return sp
 
 
-def component(rclpy, host: Host) -> SpunNode:
+def component(rclpy, host: Host) -> lifecycle.ManagedComponent:
     """The mission node as a component (c4d_ros.component): alone or composed with others. Its
     executor is the SingleThreadedExecutor: the vehicle/command service is a coroutine."""
-    node = rclpy.create_node("mission")
-    side = rclpy.create_node(m.side_node_name("mission"))
+    node = lifecycle.create_node(rclpy, "mission")
     try:
-        owner = MissionNode(node, side, **declare_all(node, PARAMETERS))
+        values = declare_all(node, PARAMETERS)
     except ParameterError as err:
-        side.destroy_node()
         node.destroy_node()
         raise ComponentError(str(err)) from None
-    return SpunNode("mission", node, False, 0, owner, (side,))
+
+    def build() -> SpunNode:  # configure (c4d_ros.lifecycle)
+        side = rclpy.create_node(m.side_node_name("mission"))
+        try:
+            return SpunNode("mission", node, False, 0, MissionNode(node, side, **values), (side,))
+        except ParameterError as err:
+            side.destroy_node()
+            raise ComponentError(str(err)) from None
+    return lifecycle.ManagedComponent("mission", node, build)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -23,6 +23,7 @@ from c4d_common.geodesy import GeoOrigin
 from c4d_common.plan import Plan, PlanError
 from c4d_common.vehicle import MissionStatus
 from c4d_interfaces.msg import CaptureEvent, MissionPlan, MissionState, VehicleState, VehicleStatus
+from c4d_ros import lifecycle
 from c4d_ros import manifest as m
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.drain import LatestSampler
@@ -128,17 +129,20 @@ class PayloadNode:
             self.log.add(c, stamp_s(msg.header.stamp), lat, lon, alt, event.file_name)
 
 
-def component(rclpy, host: Host) -> SpunNode:
+def component(rclpy, host: Host) -> lifecycle.ManagedComponent:
     """The payload node as a component (c4d_ros.component): alone or composed with others."""
-    node = rclpy.create_node("payload")
+    node = lifecycle.create_node(rclpy, "payload")
     try:
         values = declare_all(node, PARAMETERS)
     except ParameterError as err:
         node.destroy_node()
         raise ComponentError(str(err)) from None
-    side = rclpy.create_node(m.side_node_name("payload"))
-    return SpunNode("payload", node, bool(values["events_executor"]), 0, PayloadNode(node, side, Path(values["output_dir"])),
-                    (side,))
+
+    def build() -> SpunNode:  # configure (c4d_ros.lifecycle)
+        side = rclpy.create_node(m.side_node_name("payload"))
+        return SpunNode("payload", node, bool(values["events_executor"]), 0,
+                        PayloadNode(node, side, Path(values["output_dir"])), (side,))
+    return lifecycle.ManagedComponent("payload", node, build, events_executor=bool(values["events_executor"]))
 
 
 def main(argv: list[str] | None = None) -> int:

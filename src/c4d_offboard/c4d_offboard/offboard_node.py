@@ -32,6 +32,7 @@ from c4d_common.plan import Geofence, PlanError
 from c4d_common.quat import yaw_of
 from c4d_interfaces.msg import Geofence as GeofenceMsg
 from c4d_interfaces.msg import GuidanceSetpoint, VehicleState
+from c4d_ros import lifecycle
 from c4d_ros import manifest as m
 from c4d_ros.component import ComponentError, Host
 from c4d_ros.drain import LatestSampler
@@ -241,30 +242,36 @@ class OffboardComponent:
         if budget_s > 0:
             self.stopped.wait(budget_s)
 
-    def close(self) -> int:
+    def release(self) -> None:
+        """Lifecycle cleanup: the executor thread stopped, the action servers and the side node gone; the node stays."""
         self.stopped.set()
         self.executor.shutdown(timeout_sec=2.0)
         self.thread.join(timeout=2.0)
         self.actions.destroy()  # and the side node it was given
+
+    def close(self) -> int:
+        self.release()
         self.node.destroy_node()
         return 1 if self.error is not None else 0
 
 
-def component(rclpy, host: Host) -> OffboardComponent:
+def component(rclpy, host: Host) -> lifecycle.ManagedComponent:
     """The offboard node as a component (c4d_ros.component): alone or composed with others."""
-    node = rclpy.create_node("offboard")
+    node = lifecycle.create_node(rclpy, "offboard")
     try:
         values = declare_all(node, PARAMETERS)
     except ParameterError as err:
         node.destroy_node()
         raise ComponentError(str(err)) from None
-    side = rclpy.create_node(m.side_node_name("offboard"))
-    try:
-        return OffboardComponent(node, side, OffboardNode(node, side, limits_of(values)))
-    except ParameterError as err:  # the action servers' parameters (action_*)
-        side.destroy_node()
-        node.destroy_node()
-        raise ComponentError(str(err)) from None
+
+    def build() -> OffboardComponent:  # configure (c4d_ros.lifecycle)
+        side = rclpy.create_node(m.side_node_name("offboard"))
+        try:
+            return OffboardComponent(node, side, OffboardNode(node, side, limits_of(values)))
+        except ParameterError as err:  # the action servers' parameters (action_*)
+            side.destroy_node()
+            raise ComponentError(str(err)) from None
+    return lifecycle.ManagedComponent("offboard", node, build, period_s=OffboardComponent.period_s, spun=False)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -137,6 +137,14 @@ def run_components(factories: Sequence[tuple[str, Factory]], argv: list[str] | N
                 component.close()
             rclpy.try_shutdown()
             return 2
+    for label, component in zip([label for label, _ in factories], components, strict=False):
+        reason = _autostart(component)
+        if reason is not None:  # a failed configure/activate of a node started alone: as a bad parameter
+            print(f"{label}: error: {reason}", file=sys.stderr, flush=True)
+            for started in reversed(components):
+                started.close()
+            rclpy.try_shutdown()
+            return 2
     spun = [node for c in components for node in c.nodes]
     events = bool(spun) and all(c.events_executor for c in components if c.nodes)
     executor = node_runtime.make_executor(events) if spun else None
@@ -160,6 +168,14 @@ def run_components(factories: Sequence[tuple[str, Factory]], argv: list[str] | N
             codes.append(component.close())
         rclpy.try_shutdown()
     return max(codes, default=0)
+
+
+def _autostart(component: Component) -> str | None:
+    """A managed component (c4d_ros.lifecycle) configures and activates itself unless a manager drives it."""
+    from .lifecycle import ManagedNode, autostart
+
+    node = getattr(component, "node", None)
+    return autostart(node) if isinstance(node, ManagedNode) else None
 
 
 def _loop(rclpy: Any, executor: Any, components: Sequence[Component], stopping: list[int]) -> None:

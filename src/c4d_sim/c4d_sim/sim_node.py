@@ -41,7 +41,8 @@ from sensor_msgs.msg import BatteryState, FluidPressure, Imu, LaserScan, Magneti
 
 from c4d_common import quat
 from c4d_interfaces.msg import ActuatorCommand, Obstacle, Surroundings
-from c4d_ros import cdr, manifest, node_runtime
+from c4d_ros import cdr, lifecycle, manifest, node_runtime
+from c4d_ros.component import ComponentError
 from c4d_ros.drain import Drainer
 from c4d_ros.params import ParameterError, Spec, declare, declare_all
 from c4d_ros.stamps import s_to_stamp
@@ -458,9 +459,7 @@ class SimNode:
         self.pub_truth.publish(m)
 
     def run(self) -> int:
-        """Run the executive until SIGINT/SIGTERM, then tear down; 0."""
-        import rclpy
-
+        """Run the executive until SIGINT/SIGTERM or a lifecycle deactivate (executive.stop()); 0."""
         executive, log = self.executive, self.node.get_logger()
         def stop(signum, frame) -> None:
             executive.stop()
@@ -493,21 +492,22 @@ class SimNode:
                      f"IMU {imu.sampled} samples, {imu.late} late, {imu.dropped} dropped")
             if self.lockstep:
                 log.info(self.lockstep.summary())
-            self.node.destroy_node()
-            rclpy.try_shutdown()
         return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     rclpy = node_runtime.init(argv)
-    node = rclpy.create_node("sim")
     try:
+        node = lifecycle.create_node(rclpy, "sim")  # a managed node (c4d_ros.lifecycle, docs/lifecycle.md)
+    except ComponentError as exc:
+        return node_runtime.fail("sim", str(exc))
+
+    def configure() -> SimNode:  # lifecycle configure: sim config and world loaded and checked, entities created
         config = read_config(node)
         world, lidar = read_world(node, config.physics_rate_hz)
-        sim = SimNode(node, config, read_rt_priority(node), world, lidar)
-    except (SimConfigError, WorldError, ParameterError) as exc:
-        return node_runtime.fail("sim", str(exc), node)
-    return sim.run()
+        return SimNode(node, config, read_rt_priority(node), world, lidar)
+    return lifecycle.LoopWork(node, configure, (SimConfigError, WorldError, ParameterError),
+                              stop=lambda owner: owner.executive.stop()).run("sim")
 
 
 if __name__ == "__main__":
