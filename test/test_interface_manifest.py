@@ -27,7 +27,7 @@ import yaml
 from c4d_testing import installed_executable, spin_for
 from rclpy.action import get_action_server_names_and_types_by_node
 
-from c4d_ros.manifest import MANIFEST, side_node_name
+from c4d_ros.manifest import MANIFEST, is_lifecycle_endpoint, side_node_name
 
 ROOT = Path(__file__).resolve().parent.parent
 INFRASTRUCTURE_TOPICS = {"/rosout", "/parameter_events"}
@@ -79,7 +79,7 @@ class GraphReader:
                 continue
             pubs = [i for i in self.node.get_publishers_info_by_topic(name) if not self.harness(i.node_name)]
             subs = [i for i in self.node.get_subscriptions_info_by_topic(name) if not self.harness(i.node_name)]
-            if not pubs and not subs or ACTION_INFIX in name:
+            if not pubs and not subs or ACTION_INFIX in name or is_lifecycle_endpoint(name):
                 continue  # only the test's own endpoints, or an action's topics
             out.add(f"topic {name}: type {', '.join(sorted(types))}")
             out.add(f"topic {name}: producers {', '.join(sorted({self.who(i.node_name) for i in pubs}))}")
@@ -96,7 +96,7 @@ class GraphReader:
             for role, listing in (("server", self.node.get_service_names_and_types_by_node),
                                   ("client", self.node.get_client_names_and_types_by_node)):
                 for service, types in listing(node_name, namespace):
-                    if service.rsplit("/", 1)[-1] in NODE_SERVICES or ACTION_INFIX in service:
+                    if service.rsplit("/", 1)[-1] in NODE_SERVICES or ACTION_INFIX in service or is_lifecycle_endpoint(service):
                         continue
                     out.add(f"service {service}: type {', '.join(sorted(types))}")
                     out.add(f"service {service}: {role} {who}")

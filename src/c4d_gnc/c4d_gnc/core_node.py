@@ -53,7 +53,8 @@ from c4d_interfaces.msg import (
 )
 from c4d_interfaces.msg import Geofence as GeofenceMsg
 from c4d_interfaces.srv import VehicleCommand
-from c4d_ros import node_runtime
+from c4d_ros import lifecycle, node_runtime
+from c4d_ros.component import ComponentError
 from c4d_ros.drain import Drainer
 from c4d_ros.live_params import LiveParameters, describe
 from c4d_ros.manifest import (
@@ -414,8 +415,12 @@ class CoreNode:
 
 def main(argv: list[str] | None = None) -> int:
     rclpy = node_runtime.init(argv)
-    node = rclpy.create_node(NAME)
     try:
+        node = lifecycle.create_node(rclpy, NAME)  # a managed node (c4d_ros.lifecycle, docs/lifecycle.md)
+    except ComponentError as exc:
+        return node_runtime.fail(NAME, str(exc))
+
+    def configure() -> CoreNode:  # lifecycle configure: parameters and config loaded and checked, entities created
         declared = Declaration(node, PARAMS)
         cfg = CoreParams(**declared.values).load_config()
         params = CoreParams(**declared.settle(cfg.parameters()))
@@ -423,13 +428,14 @@ def main(argv: list[str] | None = None) -> int:
         store = VehicleStore.of(params.vehicle, NAME) if params.vehicle else None
         live = LiveParameters(node, core_table(cfg.airframe), store, node.get_logger().info)
         cfg = replace(cfg, airframe=airframe_with(cfg.airframe, live.values))
-    except (ParameterError, CoreConfigError, BarrierError, TunableError) as exc:
-        return node_runtime.fail(NAME, str(exc), node)
-    try:
-        return CoreNode(node, cfg, params, live).run()
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+        return CoreNode(node, cfg, params, live)
+    return lifecycle.LoopWork(node, configure, (ParameterError, CoreConfigError, BarrierError, TunableError),
+                              stop=lambda owner: owner._stop(0, None), refuse=armed_refusal).run(NAME)
+
+
+def armed_refusal(owner: CoreNode) -> str | None:
+    """Why the core may not be deactivated or shut down now: the motors are armed."""
+    return "the vehicle is armed: land and disarm first" if owner.core.out.armed else None
 
 
 if __name__ == "__main__":

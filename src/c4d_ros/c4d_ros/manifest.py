@@ -125,7 +125,8 @@ ACTUATORS = Topic("control/actuators", "c4d_interfaces/msg/ActuatorCommand", ST,
                   "the core is the only publisher")
 STATUS = Topic("vehicle/status", "c4d_interfaces/msg/VehicleStatus", L, "on change + 5 Hz (health's heartbeat)",
                ("core",),
-               ("navigation", "mission", "payload", "health", "bridge", "offboard"), "armed, mode, landed state, failsafe")
+               ("navigation", "mission", "payload", "health", "bridge", "offboard", "lifecycle_manager"),
+               "armed, mode, landed state, failsafe; the lifecycle manager of `c4d up` picks the system mode's phase")
 EXECUTOR_STATS = Topic("gnc/executor_stats", "c4d_interfaces/msg/ExecutorStats", STATS, "1 Hz", ("core",),
                        ("health", "bridge"), "cyclic-executive profiler")
 SCHEDULE = Topic("gnc/schedule", "c4d_interfaces/msg/ScheduleTable", L, "once", ("core",), (), "static schedule (GCD+)")
@@ -237,6 +238,21 @@ NODES: tuple[str, ...] = ("sim", "perception", "navigation", "core", "mission", 
                           "recorder")
 
 MANIFEST = Manifest(TOPICS, SERVICES, NODES, ACTIONS)
+
+
+# Every node is a managed node (c4d_ros.lifecycle): the ROS-standard lifecycle endpoints of each node are implicit,
+# like the parameter services, and not listed above: services /<node>/<one of LIFECYCLE_SERVICES>
+# (lifecycle_msgs/srv/*; clients: c4d up's lifecycle_manager, `ros2 lifecycle`) and the topic
+# /<node>/transition_event (lifecycle_msgs/msg/TransitionEvent; consumer: health). docs/lifecycle.md
+LIFECYCLE_SERVICES = frozenset({"change_state", "get_state", "get_available_states", "get_available_transitions",
+                                "get_transition_graph"})
+LIFECYCLE_TOPIC = "transition_event"
+
+
+def is_lifecycle_endpoint(name: str) -> bool:
+    """Whether a service or topic name is one of a managed node's standard lifecycle endpoints."""
+    base = name.rsplit("/", 1)[-1]
+    return base in LIFECYCLE_SERVICES or base == LIFECYCLE_TOPIC
 
 
 def side_node_name(owner: str) -> str:
