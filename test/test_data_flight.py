@@ -264,3 +264,48 @@ def test_analyze_report(flights, tmp_path):
         assert image.shape[0] > 200 and image[..., :3].std() > 0.01, png.name
     assert "no captures" not in html and "no link statistics recorded" in html
     print(f"\nanalyze: {len(pngs)} plots in {time.monotonic() - started:.1f} s")
+
+
+def test_catalog_of_the_recorded_flights(flights, tmp_path):
+    """Issue 21 item 4 on real flights: `catalog` indexes both recordings; each row equals the
+    figures of the flight's own report (written by the catalog's --html) and the report's series."""
+    import re
+    import sqlite3
+    from pathlib import Path
+
+    import numpy as np
+
+    from c4d_data.analysis.extract import extract
+    from c4d_data.bag_reader import open_bag
+
+    db, out = tmp_path / "catalog.sqlite", tmp_path / "html"
+    started = time.monotonic()
+    run = subprocess.run([installed_executable("c4d_data", "catalog"), str(flights["dir"]), "--db", str(db),
+                          "--html", str(out)], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert "2 flights indexed, 0 unchanged, 0 skipped" in run.stdout and "(2 reports written)" in run.stdout, run.stdout
+    con = sqlite3.connect(db)
+    con.row_factory = sqlite3.Row
+    rows = {Path(r["file"]).name: r for r in con.execute("SELECT * FROM flights")}
+    assert sorted(rows) == [p.name for p in flights["files"]]
+    for path in flights["files"]:
+        row = rows[path.name]
+        shown = dict(re.findall(r'data-figure="(\w+)" data-value="([^"]*)"', Path(row["report"]).read_text()))
+        assert shown and all(text == str(row[k]) for k, text in shown.items()), (shown, dict(row))
+        data = extract(open_bag(path), progress=False)
+        stats, state = data.series["stats"], data.series["state"]
+        assert row["overruns"] == int(stats["overruns"].sum())
+        assert row["worst_tick_load_pct"] == float(np.max(stats["load_max"]))
+        assert row["max_altitude_m"] == float(state["z"].max()) and 2.0 < row["max_altitude_m"] < 6.0
+        assert row["failsafes"] == 0 and row["vehicle"] and row["airframe"] == "4 motors"
+        assert row["distance_m"] > 3.0 and row["energy_wh"] > 0 and row["battery_used_pct"] > 0
+        assert con.execute("SELECT count(*) FROM bins WHERE flight_id = ?", (row["id"],)).fetchone()[0] \
+            == int(row["duration_s"] // 10) + 1
+    mission = rows[flights["files"][1].name]  # the camera mission: setpoints to track, pictures taken
+    assert mission["captures"] == len(extract(open_bag(flights["files"][1]), progress=False).series["captures"]) > 0
+    assert mission["tracking_samples"] > 100 and 0 < mission["tracking_rms_m"] < 2.0
+    again = subprocess.run([installed_executable("c4d_data", "catalog"), str(flights["dir"]), "--db", str(db)],
+                           capture_output=True, text=True, timeout=60)
+    assert again.returncode == 0 and "0 flights indexed, 2 unchanged" in again.stdout, again.stdout + again.stderr
+    con.close()
+    print(f"\ncatalog: 2 real flights with reports in {time.monotonic() - started:.1f} s")
