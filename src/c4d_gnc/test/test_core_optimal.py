@@ -44,10 +44,11 @@ def test_core_process_starts_with_phase_method_optimal():
     finally:
         os.killpg(proc.pid, signal.SIGINT)
         try:
-            proc.wait(timeout=20)
+            rest, _ = proc.communicate(timeout=20)  # keep draining: a full pipe would block its shutdown
+            lines.extend(rest.splitlines(keepends=True))
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+            proc.communicate()
     started = [line for line in lines if "phases by" in line]
     assert started, "".join(lines)
     assert "phases by optimal" in started[0] and "proven optimal" in started[0], started[0]

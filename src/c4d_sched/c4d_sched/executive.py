@@ -218,8 +218,13 @@ class CyclicExecutive:
         if self.t0_ns is None:
             self.start()
         end_tick = None if max_ticks is None else self.tick + max_ticks
-        self._stop = False
-        while not self._stop and (end_tick is None or self.tick < end_tick):
-            if should_stop is not None and should_stop():
-                break
-            self.step()
+        # A stop() that came before run() (a SIGINT while the node was still starting) is kept, not
+        # wiped: clearing the flag here made the core ignore such a signal and run on. The flag is
+        # consumed when run() returns, so a later run() starts afresh.
+        try:
+            while not self._stop and (end_tick is None or self.tick < end_tick):
+                if should_stop is not None and should_stop():
+                    break
+                self.step()
+        finally:
+            self._stop = False

@@ -191,3 +191,15 @@ def test_grid_start_keeps_two_processes_at_a_fixed_phase_whenever_they_start():
     for bad in (-1, period):
         with pytest.raises(ValueError, match="grid offset"):
             grid_start_ns(0, period, period, bad)
+
+
+def test_stop_before_run_is_kept_and_consumed():
+    """A SIGINT while a node is still starting calls stop() before run(): run() must return at once
+    (it used to clear the request and run on), and a later run() runs again."""
+    schedule = schedule_from_config(CONFIG)
+    ex, _ = run(schedule, 0)
+    ex.stop()
+    ex.run(max_ticks=5)
+    assert ex.tick == 0
+    ex.run(max_ticks=5)
+    assert ex.tick == 5
