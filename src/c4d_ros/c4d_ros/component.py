@@ -36,11 +36,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from .errors import ComponentError as ComponentError  # re-exported: node shells import it from here
+
 COMPONENT_GROUP = "c4d.components"
-
-
-class ComponentError(Exception):
-    """A component that cannot be created or found (one line)."""
 
 
 @dataclass(frozen=True)

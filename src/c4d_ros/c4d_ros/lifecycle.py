@@ -254,7 +254,7 @@ class ManagedNode(LifecycleNode):
 
 def create_node(rclpy: Any, name: str) -> ManagedNode:
     """A ManagedNode with its `autostart` parameter declared (ComponentError, one line, on a bad value)."""
-    from .component import ComponentError
+    from .errors import ComponentError
 
     del rclpy  # the default context, as rclpy.create_node
     node = ManagedNode(name)
@@ -319,7 +319,7 @@ class ManagedComponent:
 
     # Work
     def configure(self) -> None:
-        from .component import ComponentError
+        from .errors import ComponentError
 
         try:
             self.inner = self.build()
