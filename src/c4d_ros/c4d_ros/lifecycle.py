@@ -71,7 +71,9 @@ class ManagedNode(LifecycleNode):
         self._gating = False
         super().__init__(name, **kwargs)
         self.work: Work | None = None
-        self.last_error = ""
+        self.last_error = ""  # "<transition> failed: <reason>" of the last failed transition
+        self.last_reason = ""  # its reason alone
+        self.quiet_failures = False  # True while autostart runs the transitions (it reports the reason)
         self.active = False
         self._timers: list[Any] = []
         self._made: list[tuple[Callable[[Any], Any], Any]] = []
@@ -145,12 +147,14 @@ class ManagedNode(LifecycleNode):
         try:
             action()
         except TransitionError as exc:
-            self.last_error = f"{transition} failed: {exc}"
+            self.last_reason = str(exc)
         except Exception as exc:
-            self.last_error = f"{transition} failed: {type(exc).__name__}: {exc}"
+            self.last_reason = f"{type(exc).__name__}: {exc}"
         else:
             return SUCCESS
-        self.get_logger().error(f"lifecycle: {self.last_error}")
+        self.last_error = f"{transition} failed: {self.last_reason}"
+        if not self.quiet_failures:  # autostart prints the reason itself, as one line (bad-input rule)
+            self.get_logger().error(f"lifecycle: {self.last_error}")
         return FAILURE
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -270,10 +274,12 @@ def autostart(node: ManagedNode) -> str | None:
     """configure + activate when the node's autostart says so; None, or the failure's reason."""
     if not getattr(node, "autostart", False):
         return None
-    if node.trigger_configure() != SUCCESS:
-        return node.last_error
-    if node.trigger_activate() != SUCCESS:
-        return node.last_error
+    node.quiet_failures = True
+    try:
+        if node.trigger_configure() != SUCCESS or node.trigger_activate() != SUCCESS:
+            return node.last_reason
+    finally:
+        node.quiet_failures = False
     return None
 
 
