@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -26,6 +27,34 @@ from c4d_resim import flight as flight_module  # noqa: E402
 from c4d_resim.run import resimulate  # noqa: E402
 
 TARGET = 20.0
+JOURNALS = {"/navigation/journal", "/gnc/journal"}
+
+
+def size_cost(path: str) -> tuple[int, int, int]:
+    """(bytes with the journals, bytes without, bytes of the journals' payloads): the flight rewritten twice by
+    the recorder's writer (same chunk size and zstd), with and without the journal topics."""
+    from c4d_data.bag_reader import iter_messages, open_bag
+    from c4d_data.bag_writer import BagWriter
+
+    contents = open_bag(path)
+    sizes, payload = [], 0
+    with tempfile.TemporaryDirectory() as tmp:
+        for keep in (True, False):
+            out = Path(tmp) / f"{keep}.mcap"
+            w = BagWriter(out)
+            for name, topic in contents.topics.items():
+                if keep or name not in JOURNALS:
+                    w.add_topic(name, topic.type_name, topic.schema.data.decode() if topic.schema else "",
+                                topic.offered_qos, topic.type_hash)
+            for topic, m in iter_messages(contents):
+                if topic.name in JOURNALS:
+                    payload += len(m.data) if keep else 0
+                    if not keep:
+                        continue
+                w.write(topic.name, m.data, m.log_time, m.publish_time)
+            w.close()
+            sizes.append(out.stat().st_size)
+    return sizes[0], sizes[1], payload
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -55,6 +84,10 @@ def main(argv: list[str] | None = None) -> int:
     for name, s in (("navigation", nav), ("core", wall - nav), ("navigation + core", wall)):
         print(f"{name:<22} {s:>8.3f} {flight_s / s:>12.1f} {flight_s / s / TARGET:>7.2f}x")
     print(f"{'load + index (apart)':<22} {load:>8.3f}")
+    with_j, without, payload = size_cost(args.flight)
+    print(f"journal size cost: {with_j / 2**20:.2f} MiB with, {without / 2**20:.2f} MiB without the journal topics "
+          f"(rewritten alike): +{100 * (with_j - without) / without:.2f} % (journal payloads {payload / 1024:.0f} KiB "
+          "before zstd)")
     worst = max((s for _, s in stalls), default=0.0)
     print(f"platform-stall probe: worst oversleep {worst:.2f} ms over {len(stalls)} s")
     return 0

@@ -309,3 +309,52 @@ def test_catalog_of_the_recorded_flights(flights, tmp_path):
     assert again.returncode == 0 and "0 flights indexed, 2 unchanged" in again.stdout, again.stdout + again.stderr
     con.close()
     print(f"\ncatalog: 2 real flights with reports in {time.monotonic() - started:.1f} s")
+
+
+def test_resim_reproduces_the_mission_flight(flights, tmp_path):
+    """Issue 21: the mission flight re-simulated from its journals (navigation + core, no DDS) is bit-identical
+    to the recording; a tighter EKF GNSS gate diverges exactly at a GNSS fix (every state before it
+    identical); bad overrides are one-line errors."""
+    import subprocess
+
+    from c4d_gnc import journal as jr
+    from c4d_resim.run import resimulate
+
+    path = flights["files"][1]
+    same = resimulate(path, output=tmp_path / "resim.mcap")
+    print(f"\nresim {path.name}: {same.flight_s:.1f} s in {same.wall_s:.2f} s; state {same.state.identical}/"
+          f"{same.state.compared}, actuators {same.actuators.identical}/{same.actuators.compared}, missing "
+          f"{same.counts.missing}, lost batches {same.flight.nav.lost}/{same.flight.core.lost}")
+    assert same.counts.missing == {} and same.flight.nav.lost == same.flight.core.lost == 0
+    assert same.state.compared > 0.9 * same.flight_s * 500 and same.actuators.compared > 0.9 * same.flight_s * 500
+    assert same.state.first_divergence is None and same.actuators.first_divergence is None
+    assert same.exact
+    # every (armed, mode, nav) the recorded vehicle/status went through after the arm is one the re-simulated core took
+    assert same.modes_recorded[1:] == same.modes_resim and not same.modes_resim[-1][0]  # ... to the disarm
+    # a changed EKF gate: diverges at a GNSS fix, not before
+    gated = resimulate(path, ["navigation.gps_gate:=0.3"])
+    assert gated.state.first_divergence is not None
+    key = gated.state.first_key
+    previous_imu, consumed_between = None, []
+    for payload in (p for _, p in gated.flight.nav.batches):
+        for rec in jr.records(payload):
+            if rec[0] == jr.N_IMU:
+                if rec[1] == key:
+                    break
+                previous_imu, consumed_between = rec[1], []
+            else:
+                consumed_between.append(rec[0])
+        else:
+            continue
+        break
+    assert jr.N_GNSS in consumed_between, (consumed_between, previous_imu, key)
+    assert gated.state.identical == sum(1 for t in gated.state.t if t < gated.state.first_divergence)
+    assert gated.actuators.first_divergence is not None and gated.actuators.first_divergence >= gated.state.first_divergence
+    for override, words in (("navigation.no_such:=1", "no such parameter"),
+                            ("navigation.mag_declination_deg:=500", "outside"),
+                            ("core.avoid_brake_decel:=99", "outside"),
+                            ("navigation.source_timeout_s:=2", "cannot change")):
+        r = subprocess.run([installed_executable("c4d_resim", "resim"), str(path), "-p", override,
+                            "--report", str(tmp_path / "r")], capture_output=True, text=True, timeout=120)
+        lines = [line for line in r.stderr.splitlines() if line.strip()]
+        assert r.returncode == 2 and len(lines) == 1 and words in lines[0], (override, r.stderr)

@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 
 from .system_config import ConfigError, SystemConfig, default_config_path, load_system_config
+from .system_modes import PHASES
 
 
 class UsageError(Exception):
@@ -35,11 +36,13 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="c4d", description="Bring up, fly and inspect the c4d ROS 2 graph.")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="{up,fly,status,param}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="{up,fly,status,param,resim}")
     config_help = "system YAML (nodes, parameters, platform); default: the installed c4d_bringup/config/sitl.yaml"
     up = sub.add_parser("up", help="start the whole graph and supervise it until Ctrl-C/SIGTERM")
     up.add_argument("--config", type=Path, help=config_help)
     up.add_argument("--run-dir", type=Path, help="directory for this run's logs and files (default: <run_root>/<UTC stamp>)")
+    up.add_argument("--phase", choices=PHASES, help="pin the system mode's phase (e.g. maintenance) instead of following "
+                                                     "vehicle/status (docs/lifecycle.md)")
     fly = sub.add_parser("fly", help="end-to-end SITL flight of a mission: start, upload, fly, land, stop, report")
     fly.add_argument("--mission", type=Path, required=True, help="plan file (project YAML or QGroundControl .plan)")
     fly.add_argument("--config", type=Path, help=config_help)
@@ -53,6 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
     param.add_argument("value", nargs="?", help="set: value")
     param.add_argument("--config", type=Path, help=config_help)
     param.add_argument("--vehicle", help="vehicle name (default: the core's parameter 'vehicle' in the system config)")
+    sub.add_parser("resim", help="re-simulate a recorded flight: c4d resim FLIGHT.mcap [-p node.param:=value ...] "
+                                 "(docs/data.md)", add_help=False)
     status = sub.add_parser("status", help="one screen of the live graph")
     status.add_argument("--config", type=Path, help=config_help)
     status.add_argument("--wait", type=float, default=5.0,
@@ -102,7 +107,24 @@ def load_mission(path: Path, config: SystemConfig):
     return plan, result.duration
 
 
+def resim(argv: list[str]) -> int:
+    """`c4d resim ...`: the re-simulation tool (package c4d_resim), its arguments passed through unchanged."""
+    import os
+
+    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+
+    try:
+        exe = Path(get_package_prefix("c4d_resim")) / "lib" / "c4d_resim" / "resim"
+    except PackageNotFoundError:
+        return fail("c4d_resim is not installed (colcon build --packages-select c4d_resim)")
+    os.execv(exe, [str(exe), *argv])
+    return 0  # not reached
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["resim"]:
+        return resim(argv[1:])
     try:
         args = build_parser().parse_args(argv)
     except UsageError as exc:
@@ -148,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
     from .graph import run_graph, stamped_logger
     from .system_config import child_environment
 
-    return run_graph(config, specs, child_environment(config, os.environ), run_dir, stamped_logger())
+    return run_graph(config, specs, child_environment(config, os.environ), run_dir, stamped_logger(), args.phase)
 
 
 if __name__ == "__main__":

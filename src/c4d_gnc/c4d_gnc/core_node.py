@@ -322,7 +322,8 @@ class CoreNode:
         core = self.core
         if not core.out.armed and any(r.command in ARMING for r in core.pending):  # resim's start point
             for payload in self.journal.snapshot({"core": core, "geofence": self.geofence, "origin": self.origin,
-                                                  "cfg": self.cfg, "params": self.params}):
+                                                  "cfg": self.cfg, "params": self.params,
+                                                  "ranges": {n: (p.low, p.high) for n, p in PARAMS.items()}}):
                 self.pub_journal.publish(UInt8MultiArray(data=array.array("B", payload)))
 
     def latch(self, k: int) -> None:

@@ -22,6 +22,7 @@ parameter outside its choices, or a partial geodetic origin: one line, exit 2.
 
 from __future__ import annotations
 
+import array
 import math
 import struct
 import sys
@@ -32,14 +33,16 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TransformS
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
+from std_msgs.msg import UInt8MultiArray
 
 from c4d_interfaces.msg import EstimatorStatus, GnssIntegrity, VehicleState, VehicleStatus
-from c4d_ros import cdr, gc_policy, node_runtime
+from c4d_ros import cdr, gc_policy, lifecycle, node_runtime
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.manifest import (
     EXTERNAL_GNSS,
     EXTERNAL_ODOMETRY,
     EXTERNAL_POSE,
+    NAV_JOURNAL,
     NAV_ODOMETRY,
     NAV_POSE,
     NAV_STATE,
@@ -54,11 +57,13 @@ from c4d_ros.manifest import (
 from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.stamps import stamp_to_s
 
+from . import journal as jr
 from .ekf import EkfConfig, NavigationEkf, rotation_matrix
 from .external_pose import ExternalConfig, ExternalSample, Rejection
 from .gnss_integrity import IntegrityState
 from .navigation_filter import NavigationConfig, NavigationFilter
 from .source_selection import HEIGHT_CHOICES, HORIZONTAL_CHOICES, NAMES
+from .state_wire import state_cdr
 
 NAME = "navigation"
 PARAMS = {
@@ -164,12 +169,7 @@ def navigation_config(params: dict) -> NavigationConfig:
         origin=None if all(nan) else geo, dead_reckoning_valid_s=params["dead_reckoning_valid_s"],
         integrity_cut=params["gnss_integrity_action"] == "cut")
 LOG_PERIOD_S = 5.0
-ALWAYS_VALID = (VehicleState.VALID_ATTITUDE | VehicleState.VALID_ANGULAR_VELOCITY | VehicleState.VALID_ACCELERATION
-                | VehicleState.VALID_ANGULAR_ACCELERATION)
-MAP_FRAME, BASE_LINK = cdr.text("map"), cdr.text("base_link")
-STATE_FRAMES = (MAP_FRAME[0], BASE_LINK[0])  # the string lengths of navigation/state's CDR layout
-POSITION_VALID = (VehicleState.VALID_POSITION_XY | VehicleState.VALID_POSITION_Z | VehicleState.VALID_VELOCITY_XY
-                  | VehicleState.VALID_VELOCITY_Z)
+JOURNAL_PERIOD_S = 0.1
 
 
 def tf_sender(node) -> Callable[[Odometry], None] | None:
@@ -214,6 +214,10 @@ class NavigationNode:
         self.pub_odometry = node.create_publisher(Odometry, NAV_ODOMETRY.name, NAV_ODOMETRY.qos)
         self.pub_pose = node.create_publisher(PoseStamped, NAV_POSE.name, NAV_POSE.qos)
         self.send_tf = tf_sender(node)
+        # input consumption journal for `resim` (c4d_gnc.journal): batches at 10 Hz, a snapshot at arm
+        self.journal, self.params = jr.JournalWriter(), {}
+        self.pub_journal = node.create_publisher(UInt8MultiArray, NAV_JOURNAL.name, NAV_JOURNAL.qos)
+        node.create_timer(JOURNAL_PERIOD_S, self.flush_journal)
         node.create_timer(LOG_PERIOD_S, self.log_status)
         gc_policy.install(node)  # 500 Hz callbacks: no automatic full collection (c4d_ros.gc_policy)
         node.create_subscription(Imu, P_IMU.name, self.on_imu, P_IMU.qos, raw=True)  # 500 Hz: serialized (c4d_ros.cdr)
@@ -228,17 +232,30 @@ class NavigationNode:
         node.create_subscription(Range, P_RANGE_DOWN.name, self.on_range, P_RANGE_DOWN.qos)
         node.create_subscription(VehicleStatus, STATUS.name, self.on_status, STATUS.qos)
 
+    def flush_journal(self) -> None:
+        payload = self.journal.take()
+        if payload is not None:
+            self.pub_journal.publish(UInt8MultiArray(data=array.array("B", payload)))
+
     def on_status(self, msg: VehicleStatus) -> None:
+        if msg.armed and self.filter.on_ground:  # the arm edge: resim's start point
+            for payload in self.journal.snapshot({"filter": self.filter, "params": self.params}):
+                self.pub_journal.publish(UInt8MultiArray(data=array.array("B", payload)))
         self.filter.on_ground = not msg.armed
+        self.filter.station_keeping = msg.failsafe_action in (VehicleStatus.FAILSAFE_HOLD, VehicleStatus.FAILSAFE_LAND)
+        self.journal.status((0 if self.filter.on_ground else jr.STATUS_ARMED)
+                            | (jr.STATUS_STATION_KEEPING if self.filter.station_keeping else 0))
 
     def on_mag(self, msg: MagneticField) -> None:
         f = msg.magnetic_field
+        self.journal.stamp(jr.N_MAG, jr.stamp_ns(msg.header.stamp.sec, msg.header.stamp.nanosec))
         self.filter.magnetometer((f.x, f.y, f.z))
 
     def on_gps(self, msg: NavSatFix, external: bool) -> None:
         if external != self.gnss_external or msg.status.status < NavSatStatus.STATUS_FIX:
             return
         cov = msg.position_covariance
+        self.journal.gnss(external, jr.stamp_ns(msg.header.stamp.sec, msg.header.stamp.nanosec))
         self.filter.gnss(msg.latitude, msg.longitude, msg.altitude, cov[0], cov[8], stamp_to_s(msg.header.stamp))
 
     def on_external(self, raw: bytes, kind: type) -> None:
@@ -248,8 +265,10 @@ class NavigationNode:
         try:
             sec, nanosec = STAMP.unpack_from(raw, 4)
         except struct.error:
+            self.journal.external(int(kind is PoseWithCovarianceStamped), None)
             validator.counts[Rejection.INVALID] += 1
             return
+        self.journal.external(int(kind is PoseWithCovarianceStamped), jr.stamp_ns(sec, nanosec))
         if validator.rate_limited(sec + nanosec * 1e-9):
             return
         try:
@@ -265,15 +284,18 @@ class NavigationNode:
             child_frame_id=msg.child_frame_id if kind is Odometry else "base_link"))
 
     def on_baro(self, msg: FluidPressure) -> None:
+        self.journal.stamp(jr.N_BARO, jr.stamp_ns(msg.header.stamp.sec, msg.header.stamp.nanosec))
         self.filter.baro(msg.fluid_pressure, stamp_to_s(msg.header.stamp))
 
     def on_range(self, msg: Range) -> None:
+        self.journal.stamp(jr.N_RANGE, jr.stamp_ns(msg.header.stamp.sec, msg.header.stamp.nanosec))
         self.filter.range_down(msg.range, stamp_to_s(msg.header.stamp))
 
     def on_imu(self, raw: bytes) -> None:
         v = cdr.IMU.unpack(raw, Imu)
         sec, nanosec = v[1], v[2]
         t = sec + nanosec * 1e-9
+        self.journal.stamp(jr.N_IMU, sec * 1_000_000_000 + nanosec)
         if self.filter.imu(t, v[cdr.IMU_GYRO], v[cdr.IMU_ACCEL]):
             self.imu_stamp = (sec, nanosec)
             self.pub_state.publish(self.state_cdr(sec, nanosec, t))
@@ -292,33 +314,8 @@ class NavigationNode:
                     self.send_tf(odometry)
 
     def state_cdr(self, sec: int, nanosec: int, t: float) -> bytes:
-        """navigation/state stamped with the IMU sample time, written straight to CDR (c4d_ros.cdr:
-        ~40 µs less per sample than filling a VehicleState message and serializing it)."""
-        ekf, filt = self.ekf, self.filter
-        valid = ALWAYS_VALID
-        if ekf.heading_valid:
-            valid |= VehicleState.VALID_HEADING
-        if ekf.position_valid:
-            valid |= POSITION_VALID
-        terrain = filt.terrain_distance(t)
-        if not math.isnan(terrain):
-            valid |= VehicleState.VALID_TERRAIN_DISTANCE
-        origin = geodetic = (0.0, 0.0, 0.0)
-        if ekf.origin is not None:
-            valid |= VehicleState.VALID_ORIGIN
-            o = ekf.origin
-            origin = (o.latitude, o.longitude, o.altitude)
-            if ekf.position_valid:
-                valid |= VehicleState.VALID_GLOBAL
-                geodetic = o.to_geodetic(*ekf.p)
-        P = ekf.P
-        qw, qx, qy, qz = ekf.q
-        return cdr.VEHICLE_STATE.pack(
-            STATE_FRAMES, sec, nanosec, *MAP_FRAME, *BASE_LINK, valid, *ekf.p.tolist(), *ekf.v.tolist(),
-            *ekf.accel_world.tolist(), qx, qy, qz, qw, *filt.omega.tolist(), *filt.alpha.tolist(),
-            *P[0:3, 0:3].ravel().tolist(), *P[3:6, 3:6].ravel().tolist(), *P[6:9, 6:9].ravel().tolist(),
-            *ekf.bg.tolist(), *ekf.ba.tolist(), terrain, *origin, *geodetic,
-            filt.horizontal.fusing(t), filt.height.fusing(t))
+        """navigation/state stamped with the IMU sample time, straight to CDR (c4d_gnc.state_wire, shared with resim)."""
+        return state_cdr(self.filter, sec, nanosec, t)
 
     def status_msg(self) -> EstimatorStatus:
         """navigation/status from the filter's status (stamped with the IMU sample time)."""
@@ -388,22 +385,22 @@ class NavigationNode:
             f"sources {self.filter.status_key()}")
 
 
-def component(rclpy, host: Host) -> SpunNode:
+def component(rclpy, host: Host) -> lifecycle.ManagedComponent:
     """The navigation node as a component (c4d_ros.component): alone or composed with others."""
-    node = rclpy.create_node(NAME)
+    node = lifecycle.create_node(rclpy, NAME)
     try:
         params = declare_all(node, PARAMS)
     except ParameterError as exc:
         node.destroy_node()
         raise ComponentError(str(exc)) from None
-    try:
-        config = navigation_config(params)
-    except ComponentError:
-        node.destroy_node()
-        raise
-    owner = NavigationNode(node, params["odometry_rate_hz"], params["mag_declination_deg"], config,
-                           params["gnss_input"])
-    return SpunNode(NAME, node, bool(params["events_executor"]), params["rt_priority"], owner)
+
+    def build() -> SpunNode:  # configure (c4d_ros.lifecycle): the EKF configuration loaded and checked, entities created
+        owner = NavigationNode(node, params["odometry_rate_hz"], params["mag_declination_deg"], navigation_config(params),
+                               params["gnss_input"])
+        owner.params = {name: (value, PARAMS[name].low, PARAMS[name].high) for name, value in params.items()}
+        return SpunNode(NAME, node, bool(params["events_executor"]), params["rt_priority"], owner)
+    return lifecycle.ManagedComponent(NAME, node, build, events_executor=bool(params["events_executor"]),
+                                      rt_priority=params["rt_priority"])
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -36,6 +36,10 @@ from c4d_ros.plan_msgs import geofence_from_msg
 from .flight import IMU, SENSORS, SETPOINTS, Flight
 
 
+class JournalEnd(Exception):
+    """Navigation's journal ended (the file's end cuts the two journals at different batches): the core stops."""
+
+
 @dataclass
 class Counts:
     """What the re-simulation could not feed as recorded (each makes exactness impossible from there)."""

@@ -179,6 +179,11 @@ EXTERNAL_POSE = Topic("navigation/external/pose", "geometry_msgs/msg/PoseWithCov
                       "bridge: MAVLink VISION_POSITION_ESTIMATE, ATT_POS_MOCAP")
 EXTERNAL_GNSS = Topic("navigation/external/gnss", "sensor_msgs/msg/NavSatFix", S, "external: 1-20 Hz", ("bridge",),
                       ("navigation",), "public input: fixes from another receiver; bridge: MAVLink GPS_INPUT")
+# --- re-simulation journals (c4d_gnc.journal, docs/data.md § Re-simulation) ----------------
+NAV_JOURNAL = Topic("navigation/journal", "std_msgs/msg/UInt8MultiArray", CMD, "10 Hz batches + a snapshot at arm",
+                    ("navigation",), (), "which input sample each callback consumed, in order (resim)")
+CORE_JOURNAL = Topic("gnc/journal", "std_msgs/msg/UInt8MultiArray", CMD, "10 Hz batches + a snapshot at arm", ("core",),
+                     (), "per tick: index, clock, gyro and state stamps; setpoints, commands, fences, retunes (resim)")
 # --- recorder -----------------------------------------------------------------------------
 RECORDER_STATUS = Topic("recorder/status", "diagnostic_msgs/msg/DiagnosticStatus", L, "1 Hz + on change", ("recorder",),
                         (), "state, file, written, dropped; the c4d CLI and tests")
@@ -193,6 +198,7 @@ TOPICS: tuple[Topic, ...] = (
     DIAGNOSTICS, HEALTH_SUMMARY,
     GCS_HEARTBEAT, LINK_STATS,
     OFFBOARD_TRAJECTORY, OFFBOARD_POSE, OFFBOARD_TWIST, OFFBOARD_STATUS,
+    NAV_JOURNAL, CORE_JOURNAL,
     RECORDER_STATUS,
 )
 
