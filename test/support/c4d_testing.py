@@ -10,10 +10,13 @@ shared machine, and this plugin enforces them instead of trusting each test:
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 import uuid
 from collections.abc import Iterator
@@ -29,6 +32,11 @@ import ros_domain  # noqa: E402  (lives in tools/, added to sys.path above)
 RUN_TOKEN = f"c4d-test-{uuid.uuid4().hex[:12]}"
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ["C4D_TEST_RUN"] = RUN_TOKEN
+# per-vehicle parameter stores (docs/parameters.md: $XDG_DATA_HOME/c4d/vehicles/<vehicle>/) go to a
+# directory of this session: a gain one test stores never reaches another test, nor the user's vehicles
+_DATA_HOME = tempfile.mkdtemp(prefix="c4d-test-data-")
+atexit.register(shutil.rmtree, _DATA_HOME, True)
+os.environ["XDG_DATA_HOME"] = _DATA_HOME
 
 
 LOG_TAIL_LINES = 25
