@@ -1,7 +1,7 @@
 """Failsafe event evaluation: which monitored conditions are true right now.
 
 What: `evaluate(snapshot, policy, t)` turns a `HealthSnapshot` (the latest of everything the
-health node hears: dead and stalled nodes, GNSS health, the estimate, battery, the fence in
+health node hears: dead, stalled and inactive (lifecycle) nodes, GNSS health, the estimate, battery, the fence in
 force (geofence/active: inclusion polygon, ceiling, distance, exclusion zones, and the floor while
 flying), the ground link, executor overruns, core stalls, the offboard stream, the perceived
 obstacles, the navigation's horizontal source and GNSS integrity verdict (navigation/status)) into
@@ -118,6 +118,7 @@ class HealthSnapshot:
     flying: bool = False  # in the air, not taking off or landing: the fence's floor applies
     obstacles: tuple[Circle, ...] | None = None  # perception/surroundings (east, north, radius); None: none heard
     navigation: NavigationStatus | None = None  # navigation/status; None: not heard (no GNSS integrity events)
+    inactive_nodes: tuple[str, ...] = ()  # sorted "name (state)": left ACTIVE (lifecycle_watch.py)
 
 
 def nearest_obstacle(position: Point3, obstacles: tuple[Circle, ...]) -> float:
@@ -133,6 +134,8 @@ def evaluate(snapshot: HealthSnapshot, policy: FailsafePolicy, t: float) -> dict
         active[Event.NODE_DEAD] = ", ".join(s.dead_nodes)
     if s.stalled_nodes:
         active[Event.NODE_STALLED] = ", ".join(s.stalled_nodes)
+    if s.inactive_nodes:
+        active[Event.NODE_INACTIVE] = ", ".join(s.inactive_nodes)
     backed = s.navigation is not None and s.navigation.backed
     if s.gnss is not None and not s.gnss.ok and not backed:  # GNSS disabled + external pose is a valid setup
         active[Event.GPS_LOSS] = f"GNSS {s.gnss.message}"

@@ -13,10 +13,11 @@ ground link (a heartbeat topic, when `link_topic` is set), executor overruns and
 (gnc/executor_stats: core_stall.py), the offboard stream (guidance/offboard, sampled at the
 tick, silent for `offboard_loss_timeout_s` while the core is in OFFBOARD: offboard_loss), the
 navigation's sources and GNSS integrity (navigation/status: gnss_spoofed / gnss_jammed without
-another healthy horizontal source, *_switched with one; gps_loss not while one is in use); the
-conditions are judged by events.py. Publishes `diagnostics`
+another healthy horizontal source, *_switched with one; gps_loss not while one is in use), the
+lifecycle states of the liveness-watched nodes (`/<node>/transition_event`: node_inactive,
+lifecycle_watch.py); the conditions are judged by events.py. Publishes `diagnostics`
 (DiagnosticArray, 1 Hz, one status per monitor) and `health/summary` (DiagnosticStatus: overall
-level, active events, failsafe action and reason, dead and stalled nodes). The failsafe policy
+level, active events, failsafe action and reason, dead, stalled and inactive nodes). The failsafe policy
 (config/failsafe.yaml, parameter `policy_file`) turns events into hold / RTL / land /
 terminate, requested once per escalation through the mission's vehicle/command (RTL needs the
 mission), falling back to the core's gnc/command (commands.py).
@@ -27,10 +28,12 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from lifecycle_msgs.msg import TransitionEvent
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Header
@@ -61,6 +64,7 @@ from c4d_ros.plan_msgs import geofence_from_msg
 from .commands import FailsafeCommand, failsafe_command
 from .core_stall import CORE, CoreStallMonitor, CoreStallReport, StatsWindow
 from .events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, NavigationStatus, OffboardWatch, evaluate
+from .lifecycle_watch import LifecycleWatch
 from .liveness import GraphPresence, LivenessMonitor, classify
 from .policy import Action, Event, FailsafeArbiter, FailsafePolicy, PolicyError
 
@@ -153,6 +157,7 @@ class HealthNode:
         self.gateway = LivenessMonitor(gateway, max(GATEWAY_TIMEOUT_S, config.policy.node_timeout_s), TICK_S, self._now(),
                                        optional=gateway)
         self.graph = GraphPresence(GRAPH_SAMPLE_S)
+        self.lifecycle = LifecycleWatch(config.watched)
         self.core_stall = CoreStallMonitor(config.policy.core_stall, TICK_S, self._now())
         self.offboard_stream = LivenessMonitor((OFFBOARD_STREAM,), config.policy.offboard_loss_timeout_s, TICK_S,
                                                self._now())
@@ -201,6 +206,9 @@ class HealthNode:
                 (manifest.MISSION_STATE, MissionState, None)):
             if handle is not None or topic in owners:
                 self.node.create_subscription(msg_type, topic.name, self._listener(handle, owners.get(topic)), topic.qos)
+        for name in self.config.watched:  # every managed node's standard topic (default QoS: reliable, volatile)
+            self.node.create_subscription(TransitionEvent, f"{name}/transition_event",
+                                          partial(self._on_transition, name), 10)
         if self.config.link_topic:
             self.node.create_subscription(Header, self.config.link_topic, self._on_link, manifest.GCS_HEARTBEAT.qos)
         if self.config.watch_gateway:
@@ -215,6 +223,9 @@ class HealthNode:
             if handle is not None:
                 handle(msg)
         return on_message
+
+    def _on_transition(self, name: str, msg: TransitionEvent) -> None:
+        self.lifecycle.on_transition(name, msg.goal_state.id)
 
     def _on_status(self, msg: VehicleStatus) -> None:
         self.armed, self.in_air = bool(msg.armed), msg.landed_state in IN_AIR
@@ -273,7 +284,8 @@ class HealthNode:
             if around is not None else None
         return HealthSnapshot(self.dead, self.gnss, estimate_of(state) if state is not None else None, self.battery_soc,
                               self.geofence, link, self.new_overruns, self.stalled, self.core_stall_report,
-                              self._offboard_watch(t), self.flying, obstacles, self.navigation)
+                              self._offboard_watch(t), self.flying, obstacles, self.navigation,
+                              self.lifecycle.not_active(self.armed))
 
     def _tick(self) -> None:
         t = self._now()
@@ -326,7 +338,8 @@ class HealthNode:
         summary.values = [KeyValue(key="failsafe", value=action.name), KeyValue(key="reason", value=self.arbiter.reason),
                           KeyValue(key="active", value=",".join(sorted(active))),
                           KeyValue(key="dead_nodes", value=active.get(Event.NODE_DEAD, "")),
-                          KeyValue(key="stalled_nodes", value=active.get(Event.NODE_STALLED, ""))]
+                          KeyValue(key="stalled_nodes", value=active.get(Event.NODE_STALLED, "")),
+                          KeyValue(key="inactive_nodes", value=active.get(Event.NODE_INACTIVE, ""))]
         self.pub_summary.publish(summary)
 
     def _publish_diagnostics(self, active: dict[str, str]) -> None:

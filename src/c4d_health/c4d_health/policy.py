@@ -33,6 +33,7 @@ class Event(StrEnum):
 
     NODE_DEAD = "node_dead"  # silent and gone from the ROS graph
     NODE_STALLED = "node_stalled"  # silent but still in the ROS graph
+    NODE_INACTIVE = "node_inactive"  # a flight-critical node announced a lifecycle state other than ACTIVE
     GPS_LOSS = "gps_loss"
     ESTIMATOR_INVALID = "estimator_invalid"
     BATTERY_LOW = "battery_low"

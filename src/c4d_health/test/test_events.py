@@ -67,6 +67,12 @@ def test_stalled_nodes_are_their_own_event():
     assert events(dead_nodes=("mission",), stalled_nodes=("sim",)) == {"node_dead": "mission", "node_stalled": "sim"}
 
 
+def test_inactive_nodes_are_their_own_event():
+    assert events(inactive_nodes=("navigation (inactive)",)) == {"node_inactive": "navigation (inactive)"}
+    assert events(dead_nodes=("sim",), inactive_nodes=("core (unconfigured)", "perception (inactive)")) == \
+        {"node_dead": "sim", "node_inactive": "core (unconfigured), perception (inactive)"}
+
+
 def test_core_stall_and_repeated_core_stalls():
     assert events(core_stall=CoreStallReport()) == {}
     assert events(core_stall=CoreStallReport("worst tick 25 ms, 12 skipped ticks")) == \
@@ -158,7 +164,7 @@ def test_events_come_in_event_order():
                                 Geofence(max_distance=15.0), LinkWatch("link", None), 1, ("core",),
                                 CoreStallReport("worst tick 30 ms, 14 skipped ticks", "3 stalls within 10 s"),
                                 OffboardWatch(True, T - 1.0), True, ((99.3, 0.0, 0.0),),
-                                NavigationStatus(SOURCE_GNSS, False, GNSS_SPOOFED))
+                                NavigationStatus(SOURCE_GNSS, False, GNSS_SPOOFED), ("navigation (inactive)",))
     exclusive = (Event.BATTERY_LOW, Event.OBSTACLE_NEAR, Event.GNSS_JAMMED, Event.GNSS_SPOOFED_SWITCHED,
                  Event.GNSS_JAMMED_SWITCHED)  # each excluded by another one that is active
     assert list(evaluate(everything, POLICY, T)) == [e for e in Event if e not in exclusive]
