@@ -7,7 +7,9 @@ manager (c4d_bringup.lifecycle_manager, system modes). docs/lifecycle.md.
 - `c4d up` of a system whose core cannot configure (its config file does not exist): exit 1, the core's
   reason printed, nothing left running;
 - `c4d up` under the bundled system modes: payload configured but inactive while vehicle/status says
-  disarmed, active once it says armed (the test publishes the status, as the core would).
+  disarmed, active once it says armed (the test publishes the status, as the core would);
+- health watches lifecycle states: navigation deactivated through its service is `node_inactive` in
+  health/summary within 1 s, and clears within 1 s of its re-activation.
 No sim, no flight: each part is a few seconds.
 """
 
@@ -19,6 +21,7 @@ from functools import partial
 import pytest
 import yaml
 from c4d_testing import call_service, installed_executable, spin_for
+from diagnostic_msgs.msg import DiagnosticStatus
 from lifecycle_msgs.msg import State, Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 
@@ -128,5 +131,29 @@ def test_payload_is_inactive_on_the_ground_and_active_in_flight(processes, ros_n
     status.publish(VehicleStatus(armed=True, landed_state=VehicleStatus.LANDED_LANDING, nav_state=VehicleStatus.NAV_LAND))
     assert wait_state(payload, INACTIVE, 10)
     assert up.poll() is None
+    codes = processes.stop()
+    assert all(code == 0 for code in codes.values()), codes
+
+
+def test_health_reports_a_deactivated_navigation_until_it_is_active_again(processes, ros_node):
+    node, executor = ros_node
+    health = processes.spawn("health", [installed_executable("c4d_health", "health")])
+    summary: list[DiagnosticStatus] = []
+    node.create_subscription(DiagnosticStatus, manifest.HEALTH_SUMMARY.name, summary.append, manifest.HEALTH_SUMMARY.qos)
+    hl = Lifecycle(node, executor, "health")
+    assert wait_state(hl, ACTIVE, 30), processes.log_of(health)
+    nav_proc = processes.spawn("navigation", [installed_executable("c4d_gnc", "navigation")])
+    nav = Lifecycle(node, executor, "navigation")
+    assert wait_state(nav, ACTIVE, 30), processes.log_of(nav_proc)
+
+    def inactive() -> str:
+        return {kv.key: kv.value for kv in summary[-1].values}["inactive_nodes"] if summary else "?"
+    nav.spin(1.0)  # health's subscription to /navigation/transition_event matched
+    assert inactive() == "", summary[-1] if summary else "no health/summary"
+    assert nav.set(Transition.TRANSITION_DEACTIVATE)
+    assert nav.spin(1.0, lambda: inactive() == "navigation (inactive)"), inactive()
+    assert "node_inactive: navigation (inactive)" in summary[-1].message
+    assert nav.set(Transition.TRANSITION_ACTIVATE)
+    assert nav.spin(1.0, lambda: inactive() == ""), inactive()
     codes = processes.stop()
     assert all(code == 0 for code in codes.values()), codes
