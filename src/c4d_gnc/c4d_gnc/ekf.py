@@ -208,13 +208,15 @@ class NavigationEkf:
             self.last_mag = self.t  # the heading is measured
         return ok
 
-    def set_home(self, latitude: float, longitude: float, altitude: float) -> bool:
-        """Average the first fixes into home (the local frame's geodetic origin); True once set."""
+    def set_home(self, latitude: float, longitude: float, altitude: float, ready: bool = True) -> bool:
+        """Average the latest `home_fixes` fixes into home (the local frame's geodetic origin) once there
+        are that many and the caller is `ready` (NavigationFilter: the gyro bias converged); True once set."""
         if self.origin is not None:
             return True
-        # home = mean of the first fixes (one fix alone carries its full noise into the frame)
+        # home = mean of the latest fixes (one fix alone carries its full noise into the frame)
         self._home_fixes.append((latitude, longitude, altitude))
-        if len(self._home_fixes) < self.cfg.home_fixes:
+        del self._home_fixes[:-self.cfg.home_fixes]
+        if len(self._home_fixes) < self.cfg.home_fixes or not ready:
             return False
         lat, lon, alt = (sum(c) / len(self._home_fixes) for c in zip(*self._home_fixes, strict=True))
         self.origin = GeoOrigin(lat, lon, alt)

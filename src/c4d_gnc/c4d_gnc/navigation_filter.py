@@ -167,13 +167,13 @@ class NavigationFilter:
         return True
 
     def _settled(self) -> bool:
-        """Home (and so a valid position, and arming) waits until the roll/pitch gyro bias has converged
-        on the ground (zero-velocity updates: ~3 s after alignment), at most HOME_SETTLE_MAX_S. Why: a
+        """Home (and so a valid position, and arming) waits, while disarmed on the ground, until the roll/pitch
+        gyro bias has converged (zero-velocity updates: ~3 s after alignment), at most HOME_SETTLE_MAX_S. Why: a
         vehicle that takes off earlier flies its first seconds on a drifting attitude — in SITL under load
         that made the IMU-only shadow disagree with GNSS by 1.6 m (a false SPOOFED verdict at take-off)."""
         ekf = self.ekf
-        if not ekf.aligned or self.imu_t is None:
-            return False
+        if not self.on_ground or not ekf.aligned or self.imu_t is None:
+            return True  # armed (or not yet aligned): as before — waiting would only delay home
         if math.isnan(self._aligned_t):
             self._aligned_t = self.imu_t
         sigma = math.sqrt(max(ekf.P[9, 9], ekf.P[10, 10]))
@@ -273,9 +273,7 @@ class NavigationFilter:
         sigma_h = math.sqrt(var_h) if var_h > 0 else DEFAULT_SIGMA_H_M
         sigma_v = math.sqrt(var_v) if var_v > 0 else DEFAULT_SIGMA_V_M
         if ekf.origin is None:
-            if not self._settled():
-                return
-            ekf.set_home(latitude, longitude, altitude)
+            ekf.set_home(latitude, longitude, altitude, ready=self._settled())
             if ekf.origin is not None:
                 self.initialised = True
                 self._push_home()
