@@ -13,11 +13,11 @@ Perception is not re-run: it forwards accepted samples unchanged, so its recorde
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, Range
 
 from c4d_common.plan import PlanError
 from c4d_common.vehicle import SetpointSource
@@ -33,6 +33,7 @@ from c4d_interfaces.msg import Geofence, GuidanceSetpoint, Surroundings
 from c4d_ros import cdr
 from c4d_ros.plan_msgs import geofence_from_msg
 
+from . import decode
 from .flight import IMU, SENSORS, SETPOINTS, Flight
 
 
@@ -62,13 +63,9 @@ def _records(batches: list[tuple[int, bytes]]) -> Iterator[tuple]:
 def navigation(flight: Flight, filt: NavigationFilter, counts: Counts) -> Iterator[tuple[int, bytes]]:
     """(stamp ns, navigation/state CDR) for every IMU sample the filter accepts, in the node's order."""
     imu, sensors = flight.by_stamp[IMU], {k: flight.by_stamp[t] for k, t in SENSORS.items()}
-
-    def message(kind: str, ns: int, msg_type: type):
-        raw = sensors[kind].get(ns)
-        if raw is None:
-            counts.miss(SENSORS[kind])
-            return None
-        return deserialize_message(raw, msg_type)
+    gps, external_gnss, baro, mag, range_down = (sensors[k] for k in ("gps", "external_gnss", "baro", "mag", "range"))
+    gyro, accel = cdr.IMU_GYRO, cdr.IMU_ACCEL
+    stamp_s = jr.stamp_s
 
     for rec in _records(flight.nav.batches):
         kind = rec[0]
@@ -77,28 +74,36 @@ def navigation(flight: Flight, filt: NavigationFilter, counts: Counts) -> Iterat
             if raw is None:
                 counts.miss(IMU)
                 continue
-            v = cdr.IMU.unpack(raw, Imu)
+            v = decode.IMU(raw)
             t = v[1] + v[2] * 1e-9
-            if filt.imu(t, v[cdr.IMU_GYRO], v[cdr.IMU_ACCEL]):
+            if filt.imu(t, v[gyro], v[accel]):
                 yield rec[1], state_cdr(filt, v[1], v[2], t)
         elif kind == jr.N_GNSS:
-            msg = message("external_gnss" if rec[1] else "gps", rec[2], NavSatFix)
-            if msg is not None:
-                cov = msg.position_covariance
-                filt.gnss(msg.latitude, msg.longitude, msg.altitude, cov[0], cov[8], jr.stamp_s(rec[2]))
+            raw = (external_gnss if rec[1] else gps).get(rec[2])
+            if raw is None:
+                counts.miss(SENSORS["external_gnss" if rec[1] else "gps"])
+                continue
+            v = decode.GNSS(raw)
+            lat = decode.GNSS_LAT
+            filt.gnss(v[lat], v[lat + 1], v[lat + 2], v[decode.GNSS_COV0], v[decode.GNSS_COV8], stamp_s(rec[2]))
         elif kind == jr.N_BARO:
-            msg = message("baro", rec[1], FluidPressure)
-            if msg is not None:
-                filt.baro(msg.fluid_pressure, jr.stamp_s(rec[1]))
+            raw = baro.get(rec[1])
+            if raw is None:
+                counts.miss(SENSORS["baro"])
+                continue
+            filt.baro(decode.BARO(raw)[5], stamp_s(rec[1]))
         elif kind == jr.N_RANGE:
-            msg = message("range", rec[1], Range)
-            if msg is not None:
-                filt.range_down(msg.range, jr.stamp_s(rec[1]))
+            raw = range_down.get(rec[1])
+            if raw is None:
+                counts.miss(SENSORS["range"])
+                continue
+            filt.range_down(decode.RANGE(raw)[decode.RANGE_VALUE], stamp_s(rec[1]))
         elif kind == jr.N_MAG:
-            msg = message("mag", rec[1], MagneticField)
-            if msg is not None:
-                f = msg.magnetic_field
-                filt.magnetometer((f.x, f.y, f.z))
+            raw = mag.get(rec[1])
+            if raw is None:
+                counts.miss(SENSORS["mag"])
+                continue
+            filt.magnetometer(decode.MAG(raw)[5:8])
         elif kind == jr.N_STATUS:
             filt.on_ground = not rec[1] & jr.STATUS_ARMED
             filt.station_keeping = bool(rec[1] & jr.STATUS_STATION_KEEPING)
@@ -131,7 +136,9 @@ def core_ticks(flight: Flight, run: CoreRun, state_of: Callable[[int], bytes | N
     tick_s = schedule.tick_us / 1e6
     functions = core.task_functions()
     tasks = {t.name: (functions.get(t.name), t.divider * tick_s) for t in schedule.tasks}
-    imu, inputs = flight.by_stamp[IMU], core.inputs
+    period = math.lcm(*(t.divider for t in schedule.tasks)) if schedule.tasks else 1
+    due = [[tasks[t.name] for t in schedule.due(k)] for k in range(period)]  # TickSchedule.due(k) == due[k % period]
+    imu, inputs, gyro = flight.by_stamp[IMU], core.inputs, cdr.IMU_GYRO
     setpoints = {s: flight.by_stamp[t] for s, t in SETPOINTS.items()}
     surroundings = flight.by_stamp[SENSORS["surroundings"]]
     for rec in _records(flight.core.batches):
@@ -140,8 +147,7 @@ def core_ticks(flight: Flight, run: CoreRun, state_of: Callable[[int], bytes | N
             k, now_ns = rec[1], rec[2]
             inputs.now = now = now_ns * 1e-9
             core.latch()
-            for task in schedule.due(k):
-                fn, dt = tasks[task.name]
+            for fn, dt in due[k % period]:
                 if fn is None:  # the status task: publishes vehicle/status, then forgets the tick's events
                     core.out.events.clear()
                 else:
@@ -152,7 +158,8 @@ def core_ticks(flight: Flight, run: CoreRun, state_of: Callable[[int], bytes | N
             if raw is None:
                 counts.miss(IMU)
             else:
-                inputs.gyro, inputs.gyro_stamp = wire.gyro_from_cdr(raw)
+                v = decode.IMU(raw)  # as wire.gyro_from_cdr
+                inputs.gyro, inputs.gyro_stamp = v[gyro], v[1] + v[2] * 1e-9
         elif kind == jr.C_STATE:
             raw = state_of(rec[1])
             if raw is None:

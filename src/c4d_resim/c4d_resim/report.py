@@ -65,6 +65,8 @@ def write(r: Result, out: Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     figures = _figures(r, out)
     rate = r.flight_s / r.wall_s if r.wall_s > 0 else float("inf")
+    nav = (f"navigation {r.nav_wall_s:.2f} s of it" if r.processes == 1
+           else f"navigation in a second process, busy {r.nav_wall_s:.2f} s alongside the core")
     problems = "".join(f"<li>{html.escape(k)}: {v} sample(s) named by the journal but not in the file</li>"
                        for k, v in r.counts.missing.items())
     problems += "".join(f"<li>{html.escape(k)}: {v} input(s) not re-simulated</li>"
@@ -78,7 +80,7 @@ td,th{{border:1px solid #999;padding:4px 8px}}</style>
 </head><body><h1>Re-simulation of {html.escape(r.flight.path.name)}</h1>
 <p>Overrides: {html.escape(' '.join(r.overrides) or 'none')} — verdict: <b>{'bit-identical' if r.exact else 'differs'}</b></p>
 <p>Re-simulated {r.flight_s:.1f} s of flight (from the core's arm snapshot) in {r.wall_s:.2f} s: {rate:.1f}× real time
-(navigation {r.nav_wall_s:.2f} s of it).</p>
+({nav}).</p>
 <table><tr><th>stream</th><th>compared</th><th>identical</th><th>not in the recording</th><th>first divergence</th>
 <th>max difference</th></tr>{_row(r.state, r.core_start_s)}{_row(r.actuators, r.core_start_s)}</table>
 <p>Mode sequence (armed, mode, nav) re-simulated: {html.escape(str(r.modes_resim))} — recorded vehicle/status: {modes}</p>

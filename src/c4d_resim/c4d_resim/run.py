@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from c4d_ros import cdr
 from . import overrides
 from .engine import CoreRun, Counts, JournalEnd, core_ticks, navigation
 from .flight import ACTUATORS, STATE, Flight, load
+from .pipeline import NavigationProcess, usable_cpus
 
 
 def same_cdr(new: bytes, old: bytes) -> bool:
@@ -35,9 +37,13 @@ PLOT_EVERY = 10  # identical samples decoded for the report's trajectory: one in
 
 @dataclass
 class Stream:
-    """Per-sample comparison of one regenerated topic with the recorded one."""
+    """Per-sample comparison of one regenerated topic with the recorded one.
+
+    `add` only compares bytes (the re-simulation loop's share); the samples the report plots — every differing
+    one, one identical in PLOT_EVERY — are kept raw and decoded by `finish()`, after the loop is timed."""
 
     name: str
+    values: Callable[[bytes], tuple[float, ...]]  # a serialized sample's physical values (for plots, differences)
     compared: int = 0
     identical: int = 0
     only_resim: int = 0  # regenerated samples the recording lacks (recorder drops on best-effort topics)
@@ -47,27 +53,34 @@ class Stream:
     diff: list[float] = field(default_factory=list)  # physical difference (m or command units)
     recorded: list[tuple[float, ...]] = field(default_factory=list)  # values (every differing sample, 1 in 10 else)
     resim: list[tuple[float, ...]] = field(default_factory=list)
+    _kept: list[tuple[int, bytes, bytes | None]] = field(default_factory=list)  # (diff index, recorded, new or None)
 
-    def add(self, key: int, t: float, new: bytes, old: bytes | None, values) -> None:
+    def add(self, key: int, t: float, new: bytes, old: bytes | None) -> None:
         if old is None:
             self.only_resim += 1
             return
         self.compared += 1
         self.t.append(t)
+        self.diff.append(0.0)
         if same_cdr(new, old):
             self.identical += 1
-            self.diff.append(0.0)
             if self.compared % PLOT_EVERY == 1:  # identical: decoded for the trajectory plot only now and then
-                a = values(old)
-                self.recorded.append(a)
-                self.resim.append(a)
+                self._kept.append((-1, old, None))
             return
-        a, b = values(old), values(new)
-        self.recorded.append(a)
-        self.resim.append(b)
-        self.diff.append(max((abs(x - y) for x, y in zip(a, b, strict=True)), default=0.0))
+        self._kept.append((len(self.diff) - 1, old, new))
         if self.first_divergence is None:
             self.first_divergence, self.first_key = t, key
+
+    def finish(self) -> None:
+        """Decode the kept samples: the plotted values and the differing samples' differences."""
+        for i, old, new in self._kept:
+            a = self.values(old)
+            b = a if new is None else self.values(new)
+            self.recorded.append(a)
+            self.resim.append(b)
+            if i >= 0:
+                self.diff[i] = max((abs(x - y) for x, y in zip(a, b, strict=True)), default=0.0)
+        self._kept.clear()
 
     @property
     def max_diff(self) -> float:
@@ -89,6 +102,7 @@ class Result:
     output: Path | None
     modes_recorded: list[tuple[bool, int, int]] = field(default_factory=list)  # (armed, mode, nav) changes
     modes_resim: list[tuple[bool, int, int]] = field(default_factory=list)
+    processes: int = 1  # 2: navigation ran in a second process (nav_wall_s: its busy time, overlapping wall_s)
 
     @property
     def flight_s(self) -> float:
@@ -126,9 +140,15 @@ def _status_changes(flight: Flight) -> list[tuple[bool, int, int]]:
 
 
 def resimulate(path: str | Path, assignments: list[str] | None = None, window: tuple[float, float] | None = None,
-               output: str | Path | None = None) -> Result:
+               output: str | Path | None = None, processes: int | None = None) -> Result:
     """Re-simulate `path`; BagError / FlightError / OverrideError (one line) for unusable input.
-    `window`: (from, to) [s after the core's snapshot] of the samples compared and written."""
+    `window`: (from, to) [s after the core's snapshot] of the samples compared and written.
+    `processes`: 1 runs navigation and the core in this process, 2 navigation in a second one
+    (c4d_resim.pipeline; same bytes); None: 2 when this process may use two CPUs or more."""
+    if processes is None:
+        processes = 2 if usable_cpus() >= 2 else 1
+    if processes not in (1, 2):
+        raise ValueError(f"processes must be 1 or 2, got {processes}")
     flight = load(path)
     parsed = overrides.parse(assignments or [])
     nav_snap, core_snap = flight.nav.snapshot, flight.core.snapshot
@@ -145,12 +165,13 @@ def resimulate(path: str | Path, assignments: list[str] | None = None, window: t
         recorded_ticks[_tick_of(raw)] = raw
     nav_first = _first_imu(flight)
     regenerated: dict[int, bytes] = {}
-    state_stream, act_stream = Stream(STATE), Stream(ACTUATORS)
+    state_stream, act_stream = Stream(STATE, state_values), Stream(ACTUATORS, actuator_values)
     core_start = core_snap["core"].inputs.now
     lo, hi = (core_start + window[0], core_start + window[1]) if window else (-math.inf, math.inf)
     writer = _writer(flight, output) if output else None
-    nav_iter = navigation(flight, filt, counts)
-    nav_wall = [0.0]
+    child = NavigationProcess(flight, filt, counts) if processes == 2 else None
+    nav_iter = iter(child) if child else navigation(flight, filt, counts)
+    nav_wall = [0.0]  # processes 1: navigation's share of the wall time (2: the child's busy time, below)
 
     def advance() -> int | None:
         """One more re-simulated navigation/state: compared, written; its stamp (None: the journal ended)."""
@@ -163,7 +184,7 @@ def resimulate(path: str | Path, assignments: list[str] | None = None, window: t
         regenerated[key] = raw
         t = jr.stamp_s(key)
         if lo <= t <= hi:
-            state_stream.add(key, t, raw, recorded_states.get(key), state_values)
+            state_stream.add(key, t, raw, recorded_states.get(key))
             if writer:
                 writer.write(STATE, raw, key, key)
         return key
@@ -184,25 +205,34 @@ def resimulate(path: str | Path, assignments: list[str] | None = None, window: t
     out = run.core.out
     modes: list[tuple[bool, int, int]] = []
     try:
-        for k, now_ns, raw in core_ticks(flight, run, pull_until, counts):
-            t = now_ns * 1e-9
-            end_s = t
-            key = (bool(out.armed), int(out.mode), int(out.nav))
-            if not modes or modes[-1] != key:
-                modes.append(key)
-            if lo <= t <= hi:
-                act_stream.add(k, t, raw, recorded_ticks.get(k), actuator_values)
-                if writer:
-                    writer.write(ACTUATORS, raw, now_ns, now_ns)
-    except JournalEnd:
-        pass  # the core's journal goes on a few ticks past navigation's in the file: stop where the states end
-    while advance() is not None:  # navigation's samples after the core's last journalled tick
-        pass
-    wall = time.perf_counter() - start
+        try:
+            for k, now_ns, raw in core_ticks(flight, run, pull_until, counts):
+                t = now_ns * 1e-9
+                end_s = t
+                key = (bool(out.armed), int(out.mode), int(out.nav))
+                if not modes or modes[-1] != key:
+                    modes.append(key)
+                if lo <= t <= hi:
+                    act_stream.add(k, t, raw, recorded_ticks.get(k))
+                    if writer:
+                        writer.write(ACTUATORS, raw, now_ns, now_ns)
+        except JournalEnd:
+            pass  # the core's journal goes on a few ticks past navigation's in the file: stop where the states end
+        while advance() is not None:  # navigation's samples after the core's last journalled tick
+            pass
+        wall = time.perf_counter() - start
+    finally:
+        if child:
+            child.close()
+    if child:
+        nav_wall[0] = child.busy_s
+    state_stream.finish()
+    act_stream.finish()
     if writer:
         writer.close()
     return Result(flight, list(assignments or []), state_stream, act_stream, counts, jr.stamp_s(nav_first),
-                  core_start, end_s, wall, nav_wall[0], Path(output) if output else None, _status_changes(flight), modes)
+                  core_start, end_s, wall, nav_wall[0], Path(output) if output else None, _status_changes(flight), modes,
+                  processes)
 
 
 def _tick_of(raw: bytes) -> int:
