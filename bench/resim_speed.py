@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
 """Re-simulation speed: navigation (EKF) + GNC core re-run over a recorded flight, as a multiple of real time.
 
-For each of `--rounds` rounds, `resimulate()` (c4d_resim.run) over the flight's whole journal: the
-time of navigation alone (its generator's share) and of navigation + core, against the flight time
-re-simulated (the core's snapshot to its last journalled tick). Loading and indexing the MCAP are
-timed apart (not part of the re-simulation). Prints medians side by side, the ratio to the 20x target,
-and the platform-stall probe's worst oversleep (a stall there is the machine's, not c4d's).
+For each of `--rounds` rounds, `resimulate()` (c4d_resim.run) over the flight's whole journal, both ways:
+in one process (navigation's share of the wall time, the core's, their sum) and with navigation in a
+second process streaming its states to the core (c4d_resim.pipeline: the wall time; navigation's busy
+time overlaps the core's), against the flight time re-simulated (the core's snapshot to its last
+journalled tick). Loading and indexing the MCAP are timed apart (not part of the re-simulation).
+Prints medians side by side, the ratio to the 20x target, whether every round was bit-exact, and the
+platform-stall probe's worst oversleep (a stall there is the machine's, not c4d's).
 
 Run under the graph lock: `flock /tmp/c4d_graph.lock python bench/resim_speed.py FLIGHT.mcap [--rounds 5]`.
 """
@@ -64,26 +66,33 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.rounds < 1:
         parser.error("--rounds must be >= 1")
-    loads, walls, navs = [], [], []
-    flight_s = 0.0
+    loads: list[float] = []
+    walls: dict[int, list[float]] = {1: [], 2: []}
+    navs: dict[int, list[float]] = {1: [], 2: []}
+    flight_s, exact = 0.0, True
     probe = StallProbe()
     try:
         for _ in range(args.rounds):
             t0 = time.perf_counter()
             flight_module.load(args.flight)
             loads.append(time.perf_counter() - t0)
-            r = resimulate(args.flight)
-            flight_s = r.flight_s
-            walls.append(r.wall_s)
-            navs.append(r.nav_wall_s)
+            for processes in (1, 2):
+                r = resimulate(args.flight, processes=processes)
+                flight_s, exact = r.flight_s, exact and r.exact
+                walls[processes].append(r.wall_s)
+                navs[processes].append(r.nav_wall_s)
     finally:
         stalls = probe.stop()
-    wall, nav, load = statistics.median(walls), statistics.median(navs), statistics.median(loads)
-    print(f"re-simulation of {Path(args.flight).name}: {flight_s:.1f} s of flight, {args.rounds} rounds (medians)")
-    print(f"{'what':<22} {'wall s':>8} {'x real time':>12} {'vs 20x':>8}")
-    for name, s in (("navigation", nav), ("core", wall - nav), ("navigation + core", wall)):
-        print(f"{name:<22} {s:>8.3f} {flight_s / s:>12.1f} {flight_s / s / TARGET:>7.2f}x")
-    print(f"{'load + index (apart)':<22} {load:>8.3f}")
+    wall, nav, load = statistics.median(walls[1]), statistics.median(navs[1]), statistics.median(loads)
+    wall2, nav2 = statistics.median(walls[2]), statistics.median(navs[2])
+    print(f"re-simulation of {Path(args.flight).name}: {flight_s:.1f} s of flight, {args.rounds} rounds (medians), "
+          f"{'bit-exact in every round' if exact else 'NOT bit-exact'}")
+    print(f"{'what':<40} {'wall s':>8} {'x real time':>12} {'vs 20x':>8}")
+    for name, s in (("navigation (1 process)", nav), ("core (1 process)", wall - nav),
+                    ("navigation + core, 1 process", wall),
+                    ("navigation busy (2nd process)", nav2), ("navigation + core, 2 processes", wall2)):
+        print(f"{name:<40} {s:>8.3f} {flight_s / s:>12.1f} {flight_s / s / TARGET:>7.2f}x")
+    print(f"{'load + index (apart)':<40} {load:>8.3f}")
     with_j, without, payload = size_cost(args.flight)
     print(f"journal size cost: {with_j / 2**20:.2f} MiB with, {without / 2**20:.2f} MiB without the journal topics "
           f"(rewritten alike): +{100 * (with_j - without) / without:.2f} % (journal payloads {payload / 1024:.0f} KiB "

@@ -23,6 +23,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--to", dest="t_to", type=float, default=None, help="compare up to T [s after arm]")
     parser.add_argument("--out", help="write the re-simulated flight to this MCAP")
     parser.add_argument("--report", help="report directory (default: <flight>_resim next to the file)")
+    parser.add_argument("--processes", type=int, choices=(1, 2), default=None,
+                        help="1: navigation and core in one process; 2: navigation in a second one "
+                             "(default: 2 when two CPUs are usable); the bytes are the same")
     args = parser.parse_args(argv)
     from c4d_data.bag_reader import BagError
     from c4d_gnc.journal import JournalError
@@ -44,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"resim: error: --to {window[1]} is before --from {window[0]}", file=sys.stderr)
             return 2
     try:
-        result = resimulate(args.flight, args.overrides, window, args.out)
+        result = resimulate(args.flight, args.overrides, window, args.out, args.processes)
     except OverrideError as exc:
         print(f"resim: error: {exc}", file=sys.stderr)
         return 2
