@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import array
 import math
+from collections.abc import Callable
 
 import numpy as np
 from rclpy.serialization import serialize_message
@@ -15,6 +16,7 @@ from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix
 from std_msgs.msg import UInt8MultiArray
 
 from c4d_common.geodesy import GeoOrigin, pressure_at_altitude
+from c4d_common.vehicle import Command, Nav
 from c4d_data.bag_writer import BagWriter
 from c4d_gnc import journal as jr
 from c4d_gnc import wire
@@ -22,6 +24,7 @@ from c4d_gnc.core_commands import answer_command
 from c4d_gnc.core_config import load_core_config
 from c4d_gnc.ekf import EkfConfig, NavigationEkf
 from c4d_gnc.gnc import GncCore
+from c4d_gnc.gnss_integrity import IntegrityState
 from c4d_gnc.navigation_filter import NavigationFilter
 from c4d_gnc.state_wire import state_cdr
 from c4d_resim.run import resimulate
@@ -44,8 +47,17 @@ def _journal(writer: BagWriter, topic: str, payload: bytes | None, ns: int) -> N
         writer.write(topic, serialize_message(UInt8MultiArray(data=array.array("B", payload))), ns, ns)
 
 
-def record(path, seconds: float = 10.0, arm_at: float = 3.0) -> None:
-    """Fly the synthetic flight through the real filter and core, journalled as the nodes do."""
+Request = tuple[int, int, float, bool]  # (command, mode, altitude, force) as the core's service serves it
+
+
+def record(path, seconds: float = 10.0, arm_at: float = 3.0, gnss_noise_m: float = 1.5, drift_from: float | None = None,
+           drift_m_s: float = 0.0, health: Callable[[NavigationFilter, float], Request | None] | None = None,
+           ) -> list[tuple[bool, int, int]]:
+    """Fly the synthetic flight through the real filter and core, journalled as the nodes do; the core's
+    (armed, mode, nav) changes. `gnss_noise_m`: the fixes' white noise (1σ; their reported σ stays 1.5 m).
+    `drift_from` [s]: the GNSS fixes walk east at `drift_m_s` from then on (a spoofer).
+    `health(filter, t)`, asked before each armed tick's latch: a command to serve (journalled like the health
+    node's service call) or None."""
     rng = np.random.default_rng(7)
     w = BagWriter(path)
     for name, type_name in TOPICS.items():
@@ -57,6 +69,7 @@ def record(path, seconds: float = 10.0, arm_at: float = 3.0) -> None:
     nav_j, core_j = jr.JournalWriter(), jr.JournalWriter()
     tasks = core.task_functions()
     armed = False
+    modes: list[tuple[bool, int, int]] = []
     for i in range(int(seconds * 500)):
         ns = T0 + i * 2_000_000
         t = jr.stamp_s(ns)
@@ -87,7 +100,10 @@ def record(path, seconds: float = 10.0, arm_at: float = 3.0) -> None:
             filt.magnetometer((2e-5, 0.0, -4e-5))
         if i % 50 == 25:  # GNSS at 10 Hz, 1.5 m noise, fixes 50 ms old
             fix_ns = ns - 50_000_000
-            lat, lon, alt = HOME.to_geodetic(*rng.normal(0.0, 1.5, 3).tolist())
+            east = drift_m_s * (t - jr.stamp_s(T0) - drift_from) if drift_from is not None and \
+                t - jr.stamp_s(T0) > drift_from else 0.0
+            noise = rng.normal(0.0, gnss_noise_m, 3).tolist()
+            lat, lon, alt = HOME.to_geodetic(noise[0] + east, noise[1], noise[2])
             fix = _stamp(NavSatFix(latitude=lat, longitude=lon, altitude=alt), fix_ns)
             fix.position_covariance[0] = fix.position_covariance[4] = 1.5 ** 2
             fix.position_covariance[8] = 3.0 ** 2
@@ -115,6 +131,11 @@ def record(path, seconds: float = 10.0, arm_at: float = 3.0) -> None:
             nav_j.status(jr.STATUS_ARMED)
             filt.on_ground = False
             armed = True
+        elif armed and health is not None:
+            request = health(filt, t)
+            if request is not None:
+                core_j.command(now_ns, request[0], request[1], request[3], request[2])
+                answer_command(core, request[0], request[1], request[2], request[3])
         core.latch()
         for task in cfg.schedule.due(i):
             fn = tasks.get(task.name)
@@ -123,6 +144,9 @@ def record(path, seconds: float = 10.0, arm_at: float = 3.0) -> None:
             else:
                 fn(task.divider * cfg.schedule.tick_us / 1e6)
         w.write("/control/actuators", wire.actuator_cdr(core.out, inputs.now, i), now_ns, now_ns)
+        key = (bool(core.out.armed), int(core.out.mode), int(core.out.nav))
+        if armed and (not modes or modes[-1] != key):
+            modes.append(key)
         core_j.tick(i, now_ns)
         if i % 50 == 49:
             _journal(w, "/gnc/journal", core_j.take(), now_ns)
@@ -130,6 +154,7 @@ def record(path, seconds: float = 10.0, arm_at: float = 3.0) -> None:
     _journal(w, "/gnc/journal", core_j.take(), T0 + int(seconds * 1e9))
     _journal(w, "/navigation/journal", nav_j.take(), T0 + int(seconds * 1e9))
     w.close()
+    return modes
 
 
 def test_synthetic_flight_is_re_created_bit_for_bit_and_a_gate_change_parts_at_a_fix(tmp_path):
@@ -155,3 +180,43 @@ def test_synthetic_flight_is_re_created_bit_for_bit_and_a_gate_change_parts_at_a
         break
     assert gated.state.identical == sum(1 for t in gated.state.t if t < gated.state.first_divergence)
     assert math.isfinite(gated.state.max_diff) and gated.state.max_diff > 0
+
+
+class SpoofedHealth:
+    """The health node's GNSS-spoofing failsafe as the core receives it: HOLD when navigation reports SPOOFED,
+    LAND `land_after_s` later (health's policy: hold, then land). Its decision is journalled as the service
+    call the core served, so re-simulation replays it — it is not re-decided."""
+
+    def __init__(self, land_after_s: float = 2.0) -> None:
+        self.land_after_s = land_after_s
+        self.spoofed_at: float | None = None
+        self.undone_m = 0.0
+        self.landing = False
+
+    def __call__(self, filt: NavigationFilter, t: float) -> Request | None:
+        if self.spoofed_at is None and filt.verdict.state == IntegrityState.SPOOFED:
+            self.spoofed_at, self.undone_m = t, filt.gnss_undone_m
+            return (Command.HOLD, 0, 0.0, False)
+        if self.spoofed_at is not None and not self.landing and t - self.spoofed_at >= self.land_after_s:
+            self.landing = True
+            return (Command.LAND, 0, 0.0, False)
+        return None
+
+
+def test_gnss_spoofing_failsafe_is_re_created(tmp_path):
+    """A spoofer walks the fixes away after take-off: the recorded navigation goes SPOOFED, cuts GNSS off and
+    undoes what it fused since the onset; 'health' commands HOLD then LAND. Re-simulated: navigation re-decides
+    the verdict, the cut-off and the undo itself (its states are bit-identical, its filter ends SPOOFED with the
+    same undo); the core gets the journalled HOLD / LAND and flies the same mode sequence, byte for byte."""
+    path = tmp_path / "spoofed.mcap"
+    health = SpoofedHealth()
+    modes = record(path, seconds=14.0, gnss_noise_m=0.3, drift_from=7.0, drift_m_s=2.0, health=health)
+    assert health.spoofed_at is not None and health.landing and health.undone_m > 0.5  # the fault did happen
+    navs = [m[2] for m in modes]
+    assert navs.index(Nav.TAKEOFF) < navs.index(Nav.HOLD) < navs.index(Nav.LAND), modes
+    r = resimulate(path, processes=1)  # in this process: the re-simulated filter is inspected below
+    assert r.counts.missing == {} and r.state.compared > 5000 and r.actuators.compared > 5000
+    assert r.exact, (r.state.first_divergence, r.actuators.first_divergence)
+    assert r.modes_resim == modes
+    filt = r.flight.nav.snapshot["filter"]  # the snapshot's filter, run to the end of the flight
+    assert filt.verdict.state == IntegrityState.SPOOFED and filt.gnss_undone_m == health.undone_m
