@@ -107,7 +107,8 @@ class Flight:
             if reply.result == VehicleCommand.Response.RESULT_ACCEPTED:
                 break
             self.spin(1.0)
-        assert reply.result == VehicleCommand.Response.RESULT_ACCEPTED, reply.message
+        assert reply.result == VehicleCommand.Response.RESULT_ACCEPTED, (reply.message, self.truth,
+                                                                          self.logs("navigation")[-3000:])
         assert self.spin(25, lambda: self.status is not None and self.status.landed_state == VehicleStatus.LANDED_IN_AIR
                          and self.status.nav_state == VehicleStatus.NAV_HOLD), (self.status, self.truth, self.logs("core"))
         self.spin(1.0)
@@ -183,15 +184,22 @@ def test_failsafes_in_flight(graph):
                   f"with force → geofence_breach RTL {waited:.1f} s later")
     f.wait_landed(60)
     assert math.hypot(*f.truth[:2]) < 2.0, f.truth  # landed at home
+    # the operator widens the fence again: the scenarios below must not depend on where the spoofed flight lands
+    answer = f.call(set_fence, SetGeofence.Request(fence=geofence_to_msg(Geofence(max_altitude=20.0, max_distance=100.0)),
+                                                   force=True))
+    assert answer.result == SetGeofence.Response.RESULT_ACCEPTED, answer.message
 
     # --- GNSS spoofed (a 1 m/s drift east) with no other horizontal source (issue 19): flagged,
     # the fixes no longer fused (dead reckoning), HOLD, then LAND; the true excursion stays small
     f.take_off()
     start, t_spoof, farthest = f.truth, time.monotonic(), 0.0
+    phases: dict[str, float] = {}  # the true distance from the start when each failsafe state was first seen
 
     def excursion() -> bool:
         nonlocal farthest
-        farthest = max(farthest, math.dist(f.truth[:2], start[:2]))
+        distance = math.dist(f.truth[:2], start[:2])
+        farthest = max(farthest, distance)
+        phases.setdefault(f.failsafe, distance)
         return False
 
     f.fault("fault.gps_drift_m_s", [1.0, 0.0, 0.0])
@@ -201,11 +209,15 @@ def test_failsafes_in_flight(graph):
     assert f.spin(10.0, lambda: excursion() or f.failsafe == "LAND"), f.summary
     assert f.spin(40, lambda: excursion() or (f.status is not None and not f.status.armed)), ("not disarmed", f.status)
     # without the cut-off the vehicle would follow the drift at 1 m/s for the ~14 s to touchdown (computed, not
-    # flown); issue 19 asks for < 5 m,
-    # measured 3.5 m and 7.8 m in two runs (the velocity error left after the undo varies): not yet reliable
+    # flown); issue 19 asks for < 5 m: measured 6.1 m (0.9 m at HOLD, 2.1 m at LAND, the rest in the level descent
+    # after dead_reckoning_valid_s); with a 10 s validity the descent chased the dead-reckoned position: 11-16 m
+    touchdown = math.dist(f.truth[:2], start[:2])
+    print(f"\nspoofing excursion {farthest:.2f} m, phases {phases}, touchdown {touchdown:.2f} m", flush=True)
+    print("\n".join(line for line in f.logs("navigation").splitlines() if "SPOOFED" in line or "undone" in line))
     assert farthest < 12.0, farthest
     report.append(f"GNSS spoofed (1 m/s drift), no other source → HOLD {flagged:.1f} s later, then LAND; true "
-                  f"horizontal excursion {farthest:.2f} m")
+                  f"horizontal excursion {farthest:.2f} m (at HOLD {phases.get('HOLD', math.nan):.2f} m, at LAND "
+                  f"{phases.get('LAND', math.nan):.2f} m, touchdown {touchdown:.2f} m)")
     f.fault("fault.gps_drift_m_s", [0.0, 0.0, 0.0])  # the spoofer stops: the receiver reports the truth again
     assert f.spin(5, lambda: f.failsafe in ("NONE", "WARN")), f.summary  # reset on disarm
     f.spin(8.0)  # the integrity monitor re-admits GNSS after its recovery time

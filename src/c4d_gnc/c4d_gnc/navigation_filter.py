@@ -64,7 +64,10 @@ class NavigationConfig:
     external_alignment_samples: int = 20
     external_fuse_yaw: bool = False  # the external yaw as a heading measurement (indoors)
     origin: Vec | None = None  # configured geodetic origin (lat °, lon °, alt m); None: home from GNSS
-    dead_reckoning_valid_s: float = 10.0  # [s] position kept valid after a SPOOFED cut-off
+    # [s] position kept valid after a SPOOFED cut-off with no other horizontal source: long enough for health's
+    # HOLD to brake on it, short enough that the landing then descends level (the core's rule for an invalid
+    # position) instead of chasing a drifting dead-reckoned position (12 m in a 7 s descent in SITL at 10 s)
+    dead_reckoning_valid_s: float = 3.0
     integrity_cut: bool = True  # a SPOOFED verdict cuts GNSS off (False: the verdict is only reported)
     history_capacity: int = 600  # IMU samples kept (1.2 s at 500 Hz)
     latency_compensation: bool = True  # False: delayed samples compared with the current state (for comparison)
