@@ -3,7 +3,8 @@
 - every MAVLink parameter mapped onto the core names one of the core's live tunables, with the
   same bounds and the bundled quad_x airframe's value as default (the bridge cannot import
   c4d_gnc, so this is where a drifting copy is caught);
-- every core tunable is reachable from MAVLink, except the few listed;
+- every core tunable is reachable from MAVLink, except the few listed; the same for the
+  navigation's EKF noises and the health's thresholds (their per-event delays are ROS-only);
 - the core's table round-trips the airframe (airframe_with(af, values(af)) == af) and a change
   lands in the right field; the cross-field rules refuse sets that would not fly;
 - docs/parameters.md's generated tables are those of the code (tools/parameters_doc.py --check);
@@ -38,6 +39,32 @@ def test_mavlink_core_entries_match_the_core_table():
             assert math.isclose(spec.default, t.default, rel_tol=1e-9), f"{spec.name} default differs from quad_x {ros}"
             mapped.add(ros)
     assert set(table.items) - mapped == set(), sorted(set(table.items) - mapped)
+
+
+def test_mavlink_navigation_and_health_entries_match_their_tables():
+    """EKF2_* / BAT_* / COM_OF_LOSS_T and the C4D_* ones: live, on the node that owns them, same
+    bounds, the default EKF configuration's / the bundled failsafe policy's values; every EKF
+    tunable and every top-level policy threshold is reachable (the per-event delays are ROS-only)."""
+    from c4d_gnc.live_navigation import navigation_table
+    from c4d_health.health_node import default_policy
+    from c4d_health.live_policy import policy_table
+    from c4d_health.policy import FailsafePolicy
+
+    tables = {"navigation": navigation_table(), "health": policy_table(FailsafePolicy.from_yaml(default_policy()))}
+    for node, table in tables.items():
+        mapped = set()
+        for spec in (p for p in TABLE if p.node == node):
+            assert spec.live and len(spec.ros_names) == 1 and len(spec.name) <= 16
+            t = table.items[spec.ros_names[0]]
+            assert (spec.minimum, spec.maximum) == (t.low, t.high), f"{spec.name} bounds differ from {t.name}'s"
+            assert math.isclose(spec.default, t.default, rel_tol=1e-9), f"{spec.name} default differs from {t.name}"
+            mapped.add(t.name)
+        unmapped = {n for n in set(table.items) - mapped if not n.startswith("events.")}
+        assert unmapped == set(), (node, sorted(unmapped))
+    names = {p.name for p in TABLE}
+    assert {"EKF2_GPS_P_GATE", "EKF2_BARO_NOISE", "EKF2_HEAD_NOISE", "BAT_LOW_THR", "BAT_CRIT_THR",
+            "COM_OF_LOSS_T"} <= names
+    assert len(names) == len(TABLE)  # ids are unique
 
 
 def test_core_table_round_trip_and_cross_rules():

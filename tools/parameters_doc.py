@@ -5,7 +5,8 @@
     python tools/parameters_doc.py --check   # exit 1 (one line) when the page is out of date
 
 The block between the BEGIN/END markers lists the core's live parameters (c4d_gnc.live_gains,
-defaults of the bundled quad_x airframe) and the MAVLink parameter table
+defaults of the bundled quad_x airframe), the navigation's (c4d_gnc.live_navigation) and the
+health's (c4d_health.live_policy, the bundled failsafe.yaml) and the MAVLink parameter table
 (c4d_bridge_mavlink.params.TABLE) with the ROS parameters each maps onto.
 """
 
@@ -32,6 +33,21 @@ def generated() -> str:
     for t in core_table(load_airframe(default_airframe_path("quad_x"))):
         lines.append(f"| `{t.name}` | {mavlink.get(t.name, '')} | {t.default:g} | {t.unit} | {t.low:g} .. {t.high:g} "
                      f"| {t.description} |")
+    from c4d_gnc.live_navigation import navigation_table
+    from c4d_health.health_node import default_policy
+    from c4d_health.live_policy import policy_table
+    from c4d_health.policy import FailsafePolicy
+
+    for node, title, default, table in (
+            ("navigation", "navigation (live: applied before the next IMU sample)", "default", navigation_table()),
+            ("health", "health (live: applied at the next health tick)", "default (failsafe.yaml)",
+             policy_table(FailsafePolicy.from_yaml(default_policy())))):
+        names = {r: p.name for p in TABLE if p.node == node for r in p.ros_names}
+        lines += ["", f"### {title}", "", f"| ROS parameter | MAVLink | {default} | unit | range | meaning |",
+                  "|---|---|---|---|---|---|"]
+        for t in table:
+            lines.append(f"| `{t.name}` | {names.get(t.name, '')} | {t.default:g} | {t.unit} | {t.low:g} .. {t.high:g} "
+                         f"| {t.description}{' (integer)' if t.integer else ''} |")
     lines += ["", "### MAVLink parameter table (PARAM_REQUEST_LIST order = param_index)", "",
               "| index | id | type | default | range | owner: ROS parameter(s) | meaning |", "|---|---|---|---|---|---|---|"]
     for k, p in enumerate(TABLE):

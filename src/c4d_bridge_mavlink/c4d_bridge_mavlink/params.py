@@ -111,6 +111,44 @@ CORE_TABLE: tuple[ParamSpec, ...] = (
     _core("MPC_LAND_SPEED", "guidance.land_speed_m_s", 0.7, 0.1, 5.0, "[m/s] landing descent speed"),
 )
 
+
+def _live(node: str, name: str, ros: str, default: float, low: float, high: float, doc: str) -> ParamSpec:
+    return ParamSpec(name, default, low, high, node=node, ros_names=(ros,), doc=doc, live=True)
+
+
+# The navigation node's EKF noises and gates (c4d_gnc.live_navigation; defaults: EkfConfig's). PX4's
+# EKF2_* names where PX4 has the parameter (c4d's units: the bias walks are per sqrt(s), see docs).
+NAVIGATION_TABLE: tuple[ParamSpec, ...] = tuple(_live("navigation", *row) for row in (
+    ("EKF2_GYR_NOISE", "ekf.gyro_noise", 0.003, 1e-5, 1.0, "[rad/s] gyro noise, 1 sigma per sample"),
+    ("EKF2_ACC_NOISE", "ekf.accel_noise", 0.05, 1e-4, 10.0, "[m/s^2] accelerometer noise, 1 sigma per sample"),
+    ("EKF2_GYR_B_NOISE", "ekf.gyro_bias_walk", 2e-4, 0.0, 0.1, "[rad/s/sqrt(s)] gyro bias random walk"),
+    ("EKF2_ACC_B_NOISE", "ekf.accel_bias_walk", 1e-3, 0.0, 1.0, "[m/s^2/sqrt(s)] accelerometer bias random walk"),
+    ("EKF2_GPS_P_GATE", "ekf.gps_gate", 5.0, 1.0, 100.0, "[sigma] GNSS position innovation gate"),
+    ("EKF2_BARO_NOISE", "ekf.baro_noise", 0.15, 0.01, 50.0, "[m] barometric altitude noise"),
+    ("EKF2_HEAD_NOISE", "ekf.mag_heading_noise", 0.05235987755982988, 1e-3, 3.0, "[rad] magnetometer heading noise"),
+    ("C4D_EKF_POS_TOUT", "ekf.position_valid_s", 1.0, 0.05, 60.0, "[s] position valid this long after a fix"),
+    ("C4D_EKF_GPS_RST", "ekf.gps_reset_after_s", 3.0, 0.1, 600.0, "[s] GNSS outage after which a gated fix resets"),
+    ("C4D_EKF_ZVEL_SIG", "ekf.zero_velocity_sigma", 0.05, 1e-3, 10.0, "[m/s] zero-velocity update sigma on the ground"),
+    ("C4D_EKF_NOAID_V", "ekf.unaided_velocity_sigma", 1.0, 0.0, 100.0, "[m/s] unaided-flight velocity sigma (0 = off)"),
+    ("C4D_EKF_HDG_TOUT", "ekf.heading_valid_s", 2.0, 0.05, 600.0, "[s] heading valid this long after a mag sample"),
+))
+
+# The health node's failsafe thresholds and timeouts (c4d_health.live_policy; defaults: the bundled
+# config/failsafe.yaml). The per-event delays (events.<event>.delay_s) are ROS parameters only.
+HEALTH_TABLE: tuple[ParamSpec, ...] = tuple(_live("health", *row) for row in (
+    ("BAT_LOW_THR", "battery_low_threshold", 0.30, 0.01, 0.99, "[1] state of charge below this: battery_low"),
+    ("BAT_CRIT_THR", "battery_critical_threshold", 0.15, 0.01, 0.99, "[1] state of charge below this: battery_critical"),
+    ("COM_OF_LOSS_T", "offboard_loss_timeout_s", 0.5, 0.05, 30.0, "[s] OFFBOARD setpoints silent this long: offboard_loss"),
+    ("C4D_NODE_TOUT", "node_timeout_s", 0.6, 0.1, 30.0, "[s] a monitored node silent this long: dead or stalled"),
+    ("C4D_STALL_MS", "core_stall_ms", 20.0, 2.0, 1000.0, "[ms] worst core tick of a window above this: core_stall"),
+    ("C4D_STALL_SKIP", "core_stall_skipped_ticks", 25.0, 0.0, 100000.0, "[ticks] skipped core ticks: core_stall"),
+    ("C4D_STATS_TOUT", "core_stats_timeout_s", 1.5, 0.2, 60.0, "[s] no executor statistics this long: core_stall"),
+    ("C4D_STALL_REP_N", "core_stall_repeat_count", 3.0, 1.0, 1000.0, "[1] this many stalls in the window: repeated"),
+    ("C4D_STALL_REP_T", "core_stall_repeat_window_s", 10.0, 0.1, 3600.0, "[s] window of C4D_STALL_REP_N"),
+    ("C4D_OBST_DET_R", "obstacle_detection_range_m", 2.0, 0.05, 100.0, "[m] obstacle nearer: obstacle_near"),
+    ("C4D_OBST_PROT_R", "obstacle_protection_radius_m", 0.5, 0.01, 50.0, "[m] obstacle nearer: collision risk"),
+))
+
 TABLE: tuple[ParamSpec, ...] = (
     ParamSpec("SYSID_THISMAV", 1, 1, 250, True, doc="MAVLink system id of the vehicle (applies at the next start)"),
     ParamSpec("MIS_TAKEOFF_ALT", 5.0, 1.0, 100.0, doc="[m] take-off altitude when NAV_TAKEOFF gives none"),
@@ -124,6 +162,8 @@ TABLE: tuple[ParamSpec, ...] = (
     ParamSpec("SIM_BAT_DRAIN", 1.0, 0.0, 1000.0, node="sim", ros_names=("fault.battery_drain_factor",),
               doc="SITL: battery drain multiplier"),
     *CORE_TABLE,
+    *NAVIGATION_TABLE,
+    *HEALTH_TABLE,
 )
 
 # apply(node, [(spec, value), ...], done): set them on `node`; done(results) with one (ok, reason) per

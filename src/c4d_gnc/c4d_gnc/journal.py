@@ -40,7 +40,7 @@ CHANNELS = 16
 
 # record kinds: (name, struct of the fields after the kind byte)
 BASE = 0  # channel u8, absolute int64
-N_IMU, N_GNSS, N_BARO, N_MAG, N_RANGE, N_EXTERNAL, N_STATUS = 1, 2, 3, 4, 5, 6, 7
+N_IMU, N_GNSS, N_BARO, N_MAG, N_RANGE, N_EXTERNAL, N_STATUS, N_RETUNE = 1, 2, 3, 4, 5, 6, 7, 8
 C_TICK, C_GYRO, C_STATE, C_SETPOINT, C_COMMAND, C_SURROUNDINGS, C_FENCE, C_RETUNE = 16, 17, 18, 19, 20, 21, 22, 23
 EXTERNAL_ODOMETRY, EXTERNAL_POSE = 0, 1
 STATUS_ARMED, STATUS_STATION_KEEPING = 1, 2
@@ -49,6 +49,7 @@ RECORDS: dict[int, struct.Struct] = {
     N_IMU: struct.Struct("<i"), N_GNSS: struct.Struct("<Bi"), N_BARO: struct.Struct("<i"), N_MAG: struct.Struct("<i"),
     N_RANGE: struct.Struct("<i"), N_EXTERNAL: struct.Struct("<BBi"),  # kind, valid stamp (0: unreadable), stamp
     N_STATUS: struct.Struct("<B"),
+    N_RETUNE: struct.Struct("<I"),  # length of the pickled {ekf.<field>: value} that follows (before its IMU record)
     C_TICK: struct.Struct("<Hi"),  # k - previous k, now
     C_GYRO: struct.Struct("<i"), C_STATE: struct.Struct("<i"),
     C_SETPOINT: struct.Struct("<Bii"),  # source, now, setpoint stamp
@@ -141,7 +142,7 @@ class JournalWriter:
         self.buf += RECORDS[C_SURROUNDINGS].pack(dn, ds)
 
     def blob(self, kind: int, data: bytes) -> None:
-        """C_FENCE (serialized Geofence) or C_RETUNE (pickled changes)."""
+        """C_FENCE (serialized Geofence), C_RETUNE / N_RETUNE (pickled changes)."""
         self.buf.append(kind)
         self.buf += RECORDS[kind].pack(len(data))
         self.buf += data
@@ -218,7 +219,7 @@ def records(payload: bytes) -> Iterator[tuple]:
                 base[CH_NOW] += fields[0]
                 base[CH_SURROUND] += fields[1]
                 yield kind, base[CH_NOW], base[CH_SURROUND]
-            else:  # C_FENCE, C_RETUNE
+            else:  # C_FENCE, C_RETUNE, N_RETUNE
                 n = fields[0]
                 if i + n > end:
                     raise JournalError("truncated journal record")

@@ -16,14 +16,19 @@ and navigation/external/pose (PoseWithCovarianceStamped) — a flood is rate-lim
 message's stamp before it is deserialised —, fixes from navigation/external/gnss when
 `gnss_input: external`; primary / secondary sources per axis group; navigation/status
 (EstimatorStatus) at 5 Hz and at once on a change (sources, switches, external health, GNSS verdict).
-Topic names and QoS: c4d_ros.manifest. Parameters: PARAMS below (all read-only); a string
-parameter outside its choices, or a partial geodetic origin: one line, exit 2.
+Topic names and QoS: c4d_ros.manifest. Parameters: PARAMS below (read-only); a string
+parameter outside its choices, or a partial geodetic origin: one line, exit 2. The EKF's noises,
+gates and validity times are live parameters `ekf.*` (c4d_gnc.live_navigation, docs/parameters.md):
+checked when set (a refusal says why), applied before the next IMU sample (the node is
+single-threaded: never inside an update), logged with that sample's time, journaled for `resim`
+(N_RETUNE) and, with `vehicle` set, persisted per vehicle (navigation.yaml).
 """
 
 from __future__ import annotations
 
 import array
 import math
+import pickle
 import struct
 import sys
 from collections.abc import Callable
@@ -35,9 +40,11 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
 from std_msgs.msg import UInt8MultiArray
 
+from c4d_common.tunable import TunableError, VehicleStore
 from c4d_interfaces.msg import EstimatorStatus, GnssIntegrity, VehicleState, VehicleStatus
 from c4d_ros import cdr, gc_policy, lifecycle, node_runtime
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
+from c4d_ros.live_params import LiveParameters, describe
 from c4d_ros.manifest import (
     EXTERNAL_GNSS,
     EXTERNAL_ODOMETRY,
@@ -61,6 +68,7 @@ from . import journal as jr
 from .ekf import EkfConfig, NavigationEkf, rotation_matrix
 from .external_pose import ExternalConfig, ExternalSample, Rejection
 from .gnss_integrity import IntegrityState
+from .live_navigation import ekf_with, navigation_table
 from .navigation_filter import NavigationConfig, NavigationFilter
 from .source_selection import HEIGHT_CHOICES, HORIZONTAL_CHOICES, NAMES
 from .state_wire import state_cdr
@@ -113,6 +121,8 @@ PARAMS = {
                                   "corrections since the onset, or only report the verdict", read_only=True),
     "dead_reckoning_valid_s": Spec(10.0, "position kept valid this long after a SPOOFED GNSS cut-off [s]", 0.0, 120.0,
                                    read_only=True),
+    "vehicle": Spec("", "vehicle whose changed ekf.* parameters persist in $XDG_DATA_HOME/c4d/vehicles/<vehicle>/"
+                    "navigation.yaml and are restored at start; empty: not persisted [name]", read_only=True),
 }
 STATUS_PERIOD_S = 0.2  # navigation/status at 5 Hz (+ at once on a change)
 STATUS_CHECK_EVERY = 10  # IMU samples between change checks (50 Hz at 500 Hz)
@@ -197,10 +207,11 @@ class NavigationNode:
     """Maps the perception topics onto NavigationFilter and publishes its estimate."""
 
     def __init__(self, node, odometry_rate_hz: float, mag_declination_deg: float,
-                 config: NavigationConfig | None = None, gnss_input: str = "perception") -> None:
-        self.node = node
-        self.filter = NavigationFilter(NavigationEkf(EkfConfig(mag_declination=math.radians(mag_declination_deg))),
-                                       config)
+                 config: NavigationConfig | None = None, gnss_input: str = "perception",
+                 live: LiveParameters | None = None) -> None:
+        self.node, self.live = node, live
+        ekf_cfg = EkfConfig(mag_declination=math.radians(mag_declination_deg))
+        self.filter = NavigationFilter(NavigationEkf(ekf_with(ekf_cfg, live.values) if live else ekf_cfg), config)
         self.ekf = self.filter.ekf
         self.gnss_external = gnss_input == "external"
         self.status_key: tuple[object, ...] | None = None
@@ -291,10 +302,22 @@ class NavigationNode:
         self.journal.stamp(jr.N_RANGE, jr.stamp_ns(msg.header.stamp.sec, msg.header.stamp.nanosec))
         self.filter.range_down(msg.range, stamp_to_s(msg.header.stamp))
 
+    def retune(self, t: float) -> None:
+        """Live changes validated since the last IMU sample, in force from the sample at `t` on: the
+        frozen EkfConfig swapped whole (no update ever sees half a change), journaled before that
+        sample's record so `resim` applies them at the same point."""
+        changes = self.live.take() if self.live is not None else {}
+        if changes:
+            self.journal.blob(jr.N_RETUNE, pickle.dumps(changes))
+            self.ekf.cfg = ekf_with(self.ekf.cfg, changes)
+            self.node.get_logger().info(f"parameters applied at IMU sample t={t:.6f} s: {describe(changes)}")
+
     def on_imu(self, raw: bytes) -> None:
         v = cdr.IMU.unpack(raw, Imu)
         sec, nanosec = v[1], v[2]
         t = sec + nanosec * 1e-9
+        if self.live is not None and self.live.pending.queued:
+            self.retune(t)
         self.journal.stamp(jr.N_IMU, sec * 1_000_000_000 + nanosec)
         if self.filter.imu(t, v[cdr.IMU_GYRO], v[cdr.IMU_ACCEL]):
             self.imu_stamp = (sec, nanosec)
@@ -395,8 +418,13 @@ def component(rclpy, host: Host) -> lifecycle.ManagedComponent:
         raise ComponentError(str(exc)) from None
 
     def build() -> SpunNode:  # configure (c4d_ros.lifecycle): the EKF configuration loaded and checked, entities created
+        try:
+            store = VehicleStore.of(params["vehicle"], NAME) if params["vehicle"] else None
+            live = LiveParameters(node, navigation_table(), store, node.get_logger().info)
+        except (TunableError, ParameterError) as exc:
+            raise ComponentError(str(exc)) from None
         owner = NavigationNode(node, params["odometry_rate_hz"], params["mag_declination_deg"], navigation_config(params),
-                               params["gnss_input"])
+                               params["gnss_input"], live)
         owner.params = {name: (value, PARAMS[name].low, PARAMS[name].high) for name, value in params.items()}
         return SpunNode(NAME, node, bool(params["events_executor"]), params["rt_priority"], owner)
     return lifecycle.ManagedComponent(NAME, node, build, events_executor=bool(params["events_executor"]),

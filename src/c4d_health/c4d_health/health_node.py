@@ -21,13 +21,17 @@ level, active events, failsafe action and reason, dead, stalled and inactive nod
 (config/failsafe.yaml, parameter `policy_file`) turns events into hold / RTL / land /
 terminate, requested once per escalation through the mission's vehicle/command (RTL needs the
 mission), falling back to the core's gnc/command (commands.py).
+The policy's thresholds and timeouts (top-level fields, events.<event>.delay_s / then_after_s) are
+live parameters (live_policy.py, docs/parameters.md): checked when set (a refusal says why, e.g. a
+critical battery threshold not below the low one), swapped in whole at the next tick boundary
+(logged with the tick), persisted per vehicle (health.yaml) when `vehicle` is set.
 """
 
 from __future__ import annotations
 
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -42,6 +46,7 @@ from c4d_common.geodesy import GeoOrigin
 from c4d_common.geofence import Point3
 from c4d_common.plan import Geofence, PlanError
 from c4d_common.share import share_file
+from c4d_common.tunable import TunableError, VehicleStore
 from c4d_common.vehicle import CommandResult, Landed, Mode
 from c4d_interfaces.msg import (
     EstimatorStatus,
@@ -58,6 +63,7 @@ from c4d_interfaces.srv import VehicleCommand
 from c4d_ros import lifecycle, manifest
 from c4d_ros.component import ComponentError, Host, SpunNode, run_components
 from c4d_ros.drain import LatestSampler
+from c4d_ros.live_params import LiveParameters, describe
 from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.plan_msgs import geofence_from_msg
 
@@ -65,6 +71,7 @@ from .commands import FailsafeCommand, failsafe_command
 from .core_stall import CORE, CoreStallMonitor, CoreStallReport, StatsWindow
 from .events import LINK_TIMEOUT_S, Estimate, GnssReport, HealthSnapshot, LinkWatch, NavigationStatus, OffboardWatch, evaluate
 from .lifecycle_watch import LifecycleWatch
+from .live_policy import policy_table, policy_with
 from .liveness import GraphPresence, LivenessMonitor, classify
 from .policy import Action, Event, FailsafeArbiter, FailsafePolicy, PolicyError
 
@@ -92,6 +99,8 @@ PARAMETERS = {
                        f"of silence; empty: not watched; the MAVLink bridge's is {manifest.GCS_HEARTBEAT.name}", read_only=True),
     "unwatched_nodes": Spec([""], f"nodes whose liveness is not monitored [node names among {', '.join(WATCHED)}, "
                             f"{GATEWAY[0]}]", read_only=True),
+    "vehicle": Spec("", "vehicle whose changed thresholds persist in $XDG_DATA_HOME/c4d/vehicles/<vehicle>/health.yaml "
+                    "and are restored at start; empty: not persisted [name]", read_only=True),
 }
 
 
@@ -108,6 +117,7 @@ class HealthConfig:
     link_topic: str
     watched: dict[str, manifest.Topic]
     watch_gateway: bool = True
+    vehicle: str = ""
 
     @classmethod
     def declare(cls, node: Any) -> HealthConfig:
@@ -120,7 +130,7 @@ class HealthConfig:
                                  f"(watched: {', '.join(sorted(known))})")
         policy = FailsafePolicy.from_yaml(values["policy_file"] or default_policy())
         return cls(policy, values["link_topic"], {n: t for n, t in WATCHED.items() if n not in unwatched},
-                   GATEWAY[0] not in unwatched)
+                   GATEWAY[0] not in unwatched, values["vehicle"])
 
 
 GNSS_TESTS = {GnssIntegrity.TEST_INNOVATION: "innovation", GnssIntegrity.TEST_JUMP: "jump",
@@ -149,8 +159,9 @@ class HealthNode:
     evaluates the events (events.py), lets the arbiter (policy.py) pick the failsafe action,
     requests each escalation once and publishes health/summary and diagnostics."""
 
-    def __init__(self, node: Any, side_node: Any, config: HealthConfig) -> None:
-        self.node, self.config = node, config
+    def __init__(self, node: Any, side_node: Any, config: HealthConfig, live: LiveParameters | None = None) -> None:
+        self.node, self.config, self.live = node, config, live
+        self.ticks = 0
         self.arbiter = FailsafeArbiter(config.policy)
         self.liveness = LivenessMonitor(config.watched, config.policy.node_timeout_s, TICK_S, self._now())
         gateway = (GATEWAY[0],) if config.watch_gateway else ()
@@ -287,8 +298,25 @@ class HealthNode:
                               self._offboard_watch(t), self.flying, obstacles, self.navigation,
                               self.lifecycle.not_active(self.armed))
 
+    def retune(self, changes: dict[str, float]) -> None:
+        """Live threshold changes, in force from this tick on: the frozen policy swapped whole into the
+        arbiter, the event evaluation and the monitors that copied a timeout."""
+        policy = policy_with(self.config.policy, changes)
+        self.config = replace(self.config, policy=policy)
+        self.arbiter.policy = policy
+        self.liveness.timeout_s = policy.node_timeout_s
+        self.gateway.timeout_s = max(GATEWAY_TIMEOUT_S, policy.node_timeout_s)
+        self.core_stall.limits = policy.core_stall
+        self.core_stall.silence.timeout_s = policy.core_stall.stats_timeout_s
+        self.offboard_stream.timeout_s = policy.offboard_loss_timeout_s
+        self.node.get_logger().info(f"parameters applied at health tick {self.ticks}: {describe(changes)}")
+
     def _tick(self) -> None:
         t = self._now()
+        self.ticks += 1
+        changes = self.live.take() if self.live is not None else {}
+        if changes:  # validated when set; the tick boundary: no evaluation sees half a change
+            self.retune(changes)
         if not self.armed and self.arbiter.action != Action.NONE:
             self.arbiter.reset()
         if self.graph.due(t):
@@ -359,10 +387,13 @@ def component(rclpy, host: Host) -> lifecycle.ManagedComponent:
     def build() -> SpunNode:  # configure (c4d_ros.lifecycle): parameters and the failsafe policy file read and checked
         try:
             config = HealthConfig.declare(node)
-        except (ParameterError, PolicyError) as exc:
+            store = VehicleStore.of(config.vehicle, NAME) if config.vehicle else None
+            live = LiveParameters(node, policy_table(config.policy), store, node.get_logger().info)
+        except (ParameterError, PolicyError, TunableError) as exc:
             raise ComponentError(str(exc)) from None
+        config = replace(config, policy=policy_with(config.policy, live.values))
         side = rclpy.create_node(manifest.side_node_name(NAME))
-        return SpunNode(NAME, node, False, 0, HealthNode(node, side, config), (side,))
+        return SpunNode(NAME, node, False, 0, HealthNode(node, side, config, live), (side,))
     return lifecycle.ManagedComponent(NAME, node, build)
 
 

@@ -109,6 +109,14 @@ def navigation(flight: Flight, filt: NavigationFilter, counts: Counts) -> Iterat
             filt.station_keeping = bool(rec[1] & jr.STATUS_STATION_KEEPING)
         elif kind == jr.N_EXTERNAL:
             counts.skip("navigation/external")
+        elif kind == jr.N_RETUNE:  # a live ekf.* change, in force from the next IMU sample (navigation_node.retune)
+            from c4d_gnc.live_navigation import ekf_with, navigation_table
+
+            changes = jr.safe_loads(rec[1])
+            reason = navigation_table().check(changes, {}) if isinstance(changes, dict) else "not a mapping"
+            if reason:
+                raise jr.JournalError(f"navigation retune record: {reason}")
+            filt.ekf.cfg = ekf_with(filt.ekf.cfg, changes)
 
 
 @dataclass
