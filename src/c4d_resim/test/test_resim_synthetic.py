@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import array
 import math
+import pickle
 from collections.abc import Callable
 
 import numpy as np
@@ -25,6 +26,7 @@ from c4d_gnc.core_config import load_core_config
 from c4d_gnc.ekf import EkfConfig, NavigationEkf
 from c4d_gnc.gnc import GncCore
 from c4d_gnc.gnss_integrity import IntegrityState
+from c4d_gnc.live_navigation import ekf_with
 from c4d_gnc.navigation_filter import NavigationFilter
 from c4d_gnc.state_wire import state_cdr
 from c4d_resim.run import resimulate
@@ -52,12 +54,13 @@ Request = tuple[int, int, float, bool]  # (command, mode, altitude, force) as th
 
 def record(path, seconds: float = 10.0, arm_at: float = 3.0, gnss_noise_m: float = 1.5, drift_from: float | None = None,
            drift_m_s: float = 0.0, health: Callable[[NavigationFilter, float], Request | None] | None = None,
-           ) -> list[tuple[bool, int, int]]:
+           retune: tuple[float, dict[str, float]] | None = None) -> list[tuple[bool, int, int]]:
     """Fly the synthetic flight through the real filter and core, journalled as the nodes do; the core's
     (armed, mode, nav) changes. `gnss_noise_m`: the fixes' white noise (1σ; their reported σ stays 1.5 m).
     `drift_from` [s]: the GNSS fixes walk east at `drift_m_s` from then on (a spoofer).
     `health(filter, t)`, asked before each armed tick's latch: a command to serve (journalled like the health
-    node's service call) or None."""
+    node's service call) or None. `retune` (t [s], {ekf.<field>: value}): a live navigation parameter change
+    applied before the first IMU sample at or after t, journalled as navigation_node.retune does."""
     rng = np.random.default_rng(7)
     w = BagWriter(path)
     for name, type_name in TOPICS.items():
@@ -80,6 +83,10 @@ def record(path, seconds: float = 10.0, arm_at: float = 3.0, gnss_noise_m: float
         imu.linear_acceleration.x, imu.linear_acceleration.y, imu.linear_acceleration.z = accel.tolist()
         raw = serialize_message(imu)
         w.write("/perception/imu", raw, ns, ns)
+        if retune is not None and t >= jr.stamp_s(T0) + retune[0]:  # navigation: on_imu, a change queued
+            nav_j.blob(jr.N_RETUNE, pickle.dumps(retune[1]))
+            filt.ekf.cfg = ekf_with(filt.ekf.cfg, retune[1])
+            retune = None
         nav_j.stamp(jr.N_IMU, ns)  # navigation: on_imu
         if filt.imu(t, tuple(gyro), tuple(accel)):
             sec, nanosec = divmod(ns, 1_000_000_000)
@@ -180,6 +187,22 @@ def test_synthetic_flight_is_re_created_bit_for_bit_and_a_gate_change_parts_at_a
         break
     assert gated.state.identical == sum(1 for t in gated.state.t if t < gated.state.first_divergence)
     assert math.isfinite(gated.state.max_diff) and gated.state.max_diff > 0
+
+
+def test_a_live_navigation_retune_is_replayed_at_its_sample(tmp_path):
+    """A live ekf.* change in flight (navigation_node.retune: N_RETUNE before the IMU sample it applies to)
+    is re-applied by resim at the same sample: the re-created stream stays bit for bit, though the change
+    (baro and accelerometer noises raised) moves the estimate."""
+    path, plain = tmp_path / "retuned.mcap", tmp_path / "plain.mcap"
+    record(path, seconds=6.0, retune=(4.0, {"ekf.baro_noise": 5.0, "ekf.accel_noise": 0.5}))
+    record(plain, seconds=6.0)
+    same = resimulate(path)
+    assert same.counts.missing == {} and same.exact, (same.state.first_divergence, same.actuators.first_divergence)
+    assert any(rec[0] == jr.N_RETUNE for _, payload in same.flight.nav.batches for rec in jr.records(payload))
+    other = resimulate(plain)
+    states, plain_states = (dict(r.flight.logged["/navigation/state"]) for r in (same, other))
+    changed = sorted(ns for ns, raw in states.items() if plain_states.get(ns) != raw)
+    assert changed and jr.stamp_s(changed[0]) >= jr.stamp_s(T0) + 4.0  # the change moved the estimate, from t on
 
 
 class SpoofedHealth:
