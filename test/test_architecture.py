@@ -30,7 +30,8 @@ BRINGUP = "c4d_bringup"
 CLIENTS = {"c4d_client"}
 TOOLS = {"c4d_resim"}
 TOOL_SOURCES = {"c4d_gnc", "c4d_data"}
-CONFIG_LOADERS = {"c4d_sim.sim_config", "c4d_gnc.core_config", "c4d_gnc.live_gains"}
+CONFIG_LOADERS = {"c4d_sim.sim_config", "c4d_gnc.core_config", "c4d_gnc.live_gains", "c4d_gnc.live_navigation",
+                  "c4d_health.live_policy", "c4d_health.policy"}
 ROS_CLIENT = {"rclpy", "rosidl_runtime_py", "builtin_interfaces", "c4d_interfaces", "std_msgs", "sensor_msgs"}
 PACKAGES = sorted(p.parent.name for p in SRC.glob("*/setup.py"))
 

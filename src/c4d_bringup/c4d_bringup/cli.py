@@ -3,7 +3,7 @@
     c4d up     [--config SYSTEM.yaml] [--run-dir DIR]
     c4d fly    --mission FILE [--config SYSTEM.yaml] [--run-dir DIR] [--timeout S] [--no-report]
     c4d status [--config SYSTEM.yaml] [--wait S]
-    c4d param  list | set NAME VALUE | reset  [--config SYSTEM.yaml] [--vehicle NAME]   (docs/parameters.md)
+    c4d param  list | set NAME VALUE | reset  [--config SYSTEM.yaml] [--vehicle NAME] [--node core|navigation|health]
 
 The system config defaults to the installed config/sitl.yaml of c4d_bringup. ROS_DOMAIN_ID
 comes from the environment. Bad input (unknown node names, missing files, bad YAML, an
@@ -55,7 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     param.add_argument("name", nargs="?", help="set: parameter name (c4d param list)")
     param.add_argument("value", nargs="?", help="set: value")
     param.add_argument("--config", type=Path, help=config_help)
-    param.add_argument("--vehicle", help="vehicle name (default: the core's parameter 'vehicle' in the system config)")
+    param.add_argument("--vehicle", help="vehicle name (default: the node's parameter 'vehicle' in the system config)")
+    param.add_argument("--node", choices=("core", "navigation", "health"), default="core",
+                       help="whose live parameters: the core's gains (default), the EKF's noises, the failsafe thresholds")
     sub.add_parser("resim", help="re-simulate a recorded flight: c4d resim FLIGHT.mcap [-p node.param:=value ...] "
                                  "(docs/data.md)", add_help=False)
     status = sub.add_parser("status", help="one screen of the live graph")
@@ -136,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
 
             if (args.action == "set") != (args.name is not None and args.value is not None):
                 raise ConfigError("usage: c4d param set NAME VALUE (list and reset take no name)")
-            return param(config, args.action, args.vehicle, args.name, args.value)
+            return param(config, args.action, args.vehicle, args.name, args.value, args.node)
         if args.command == "status":
             if not math.isfinite(args.wait) or args.wait < 0:
                 raise ConfigError("--wait must be >= 0")

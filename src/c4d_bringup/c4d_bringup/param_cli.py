@@ -1,4 +1,4 @@
-"""`c4d param list | set NAME VALUE | reset` — a vehicle's stored tuning, offline.
+"""`c4d param list | set NAME VALUE | reset [--node core|navigation|health]` — a vehicle's stored tuning, offline.
 
 What: the core's live gains and limits (c4d_gnc.live_gains) of the vehicle the system config
 names (core parameter `vehicle`, or --vehicle): `list` prints each with the value the core will
@@ -9,37 +9,54 @@ The store is the one the running core writes (c4d_common.tunable.VehicleStore: o
 node and vehicle, written atomically under a lock), so the CLI and a running core never tear it.
 A running core does not re-read it: change a flying vehicle with `ros2 param set core NAME VALUE`
 or a GCS (MAVLink PARAM_SET); both persist the same way.
+`--node navigation` / `--node health`: the same for the EKF noises and gates (c4d_gnc.live_navigation)
+and the failsafe thresholds (c4d_health.live_policy, on the policy file the system config names, else
+the bundled one); the vehicle is that node's `vehicle` parameter.
 """
 
 from __future__ import annotations
 
 import math
 
+from c4d_common.share import share_file
 from c4d_common.tunable import TunableError, TunableTable, VehicleStore
 from c4d_gnc.core_config import CoreConfigError, load_core_config
 from c4d_gnc.live_gains import core_table
+from c4d_gnc.live_navigation import navigation_table
+from c4d_health.live_policy import policy_table
+from c4d_health.policy import FailsafePolicy, PolicyError
 
 from .system_config import ConfigError, SystemConfig
 
+NODES = ("core", "navigation", "health")
 
-def _table_and_store(config: SystemConfig, vehicle: str | None) -> tuple[TunableTable, VehicleStore]:
-    core = config.node("core")
-    params = core.parameters if core is not None else {}
+
+def _table_and_store(config: SystemConfig, vehicle: str | None, node: str = "core") -> tuple[TunableTable, VehicleStore]:
+    entry = config.node(node)
+    params = entry.parameters if entry is not None else {}
     name = vehicle or str(params.get("vehicle") or "")
     if not name:
-        raise ConfigError("no vehicle name: give --vehicle NAME or set the core's parameter 'vehicle' in the system config")
-    conf = str(params.get("config") or "").replace("${config_dir}", str(config.path.parent))
-    airframe = str(params.get("airframe") or "").replace("${config_dir}", str(config.path.parent))
+        raise ConfigError(f"no vehicle name: give --vehicle NAME or set the {node}'s parameter 'vehicle' in the system config")
+
+    def path(key: str) -> str:
+        return str(params.get(key) or "").replace("${config_dir}", str(config.path.parent))
     try:
-        cfg = load_core_config(conf or None, airframe or None)
-        return core_table(cfg.airframe), VehicleStore.of(name, "core")
-    except (CoreConfigError, TunableError) as exc:
+        if node == "navigation":
+            table = navigation_table()
+        elif node == "health":
+            table = policy_table(FailsafePolicy.from_yaml(path("policy_file") or share_file("c4d_health", "config",
+                                                                                           "failsafe.yaml")))
+        else:
+            table = core_table(load_core_config(path("config") or None, path("airframe") or None).airframe)
+        return table, VehicleStore.of(name, node)
+    except (CoreConfigError, PolicyError, TunableError) as exc:
         raise ConfigError(str(exc)) from None
 
 
-def run(config: SystemConfig, action: str, vehicle: str | None, name: str | None, value: str | None) -> int:
+def run(config: SystemConfig, action: str, vehicle: str | None, name: str | None, value: str | None,
+        node: str = "core") -> int:
     """The `c4d param` subcommand; ConfigError (one line, exit 2) for anything unusable."""
-    table, store = _table_and_store(config, vehicle)
+    table, store = _table_and_store(config, vehicle, node)
     try:
         stored = store.read()
     except TunableError as exc:
@@ -53,7 +70,8 @@ def run(config: SystemConfig, action: str, vehicle: str | None, name: str | None
         return 0
     if action == "reset":
         removed = store.reset()
-        print(f"{store.path}: {'removed' if removed else 'nothing stored'}; the next start uses the airframe's values")
+        defaults = {"core": "the airframe's", "navigation": "the EKF's default", "health": "the policy file's"}[node]
+        print(f"{store.path}: {'removed' if removed else 'nothing stored'}; the next start uses {defaults} values")
         return 0
     assert name is not None and value is not None
     try:
@@ -67,6 +85,6 @@ def run(config: SystemConfig, action: str, vehicle: str | None, name: str | None
     if reason:
         raise ConfigError(reason)
     store.update({name: number}, table.defaults())
-    print(f"{name} = {number:g} stored in {store.path} (applies at the next start; a running core: "
-          f"ros2 param set core {name} {number:g})")
+    print(f"{name} = {number:g} stored in {store.path} (applies at the next start; a running {node}: "
+          f"ros2 param set {node} {name} {number:g})")
     return 0

@@ -41,3 +41,26 @@ def test_set_list_reset_and_refusals(tmp_path):
     assert yaml.safe_load(store.read_text()) == {"gains.rate.roll.p": 30.0}  # refusals changed nothing
     assert c4d(tmp_path, "reset").returncode == 0 and not store.exists()
     assert "nothing stored" in c4d(tmp_path, "reset").stdout
+
+
+def test_navigation_and_health_stores(tmp_path):
+    """--node navigation / health: the stores the nodes restore from (navigation.yaml, health.yaml), checked
+    by the nodes' own tables (the EKF's ranges; the policy's cross rule on the bundled failsafe.yaml)."""
+    folder = tmp_path / "c4d" / "vehicles" / "sitl"
+    listed = c4d(tmp_path, "list", "--node", "navigation")
+    assert listed.returncode == 0 and "ekf.gps_gate" in listed.stdout and "navigation.yaml" in listed.stdout, listed.stderr
+    assert c4d(tmp_path, "set", "ekf.gps_gate", "4", "--node", "navigation").returncode == 0
+    assert yaml.safe_load((folder / "navigation.yaml").read_text()) == {"ekf.gps_gate": 4.0}
+    assert c4d(tmp_path, "set", "battery_low_threshold", "0.35", "--node", "health").returncode == 0
+    assert yaml.safe_load((folder / "health.yaml").read_text()) == {"battery_low_threshold": 0.35}
+    for args, error in ((("set", "ekf.gps_gate", "0.5", "--node", "navigation"), "ekf.gps_gate: 0.5 is outside [1, 100]"),
+                        (("set", "battery_critical_threshold", "0.4", "--node", "health"),
+                         "battery_critical_threshold (0.4) must be below battery_low_threshold (0.35)"),
+                        (("set", "gains.rate.roll.p", "30", "--node", "health"), "no such parameter"),
+                        (("list", "--node", "mission"), "invalid choice")):
+        bad = c4d(tmp_path, *args)
+        lines = bad.stderr.strip().splitlines()
+        assert bad.returncode == 2 and len(lines) == 1 and error in lines[0], (args, bad.stderr)
+    assert not (folder / "core.yaml").exists()  # one file per node
+    assert c4d(tmp_path, "reset", "--node", "health").returncode == 0 and not (folder / "health.yaml").exists()
+    assert (folder / "navigation.yaml").exists()
