@@ -26,7 +26,10 @@ BATCH = 128  # states per message: ~66 kB, a quarter of a second of flight
 
 
 def usable_cpus() -> int:
-    """CPUs this process may run on (its affinity mask where the platform has one)."""
+    """CPUs this process may run on (its affinity mask where the platform has one); 1 inside a daemonic
+    process (a pool worker), which may not start children."""
+    if multiprocessing.current_process().daemon:
+        return 1
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not Linux
