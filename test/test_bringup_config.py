@@ -47,7 +47,8 @@ def test_bundled_sitl_config_is_the_whole_graph():
                             "recorder"]
     assert [n.name for n in config.nodes if n.critical] == ["sim", "perception", "navigation", "core"]
     assert all(n.restart == "always" for n in config.nodes if not n.critical)
-    assert config.node("core").parameters == {"rt_priority": 60}  # the flight-critical chain is real-time (docs/dds.md)
+    # the flight-critical chain is real-time (docs/dds.md); live gain changes persist per vehicle (docs/parameters.md)
+    assert config.node("core").parameters == {"rt_priority": 60, "vehicle": "sitl"}
     assert [config.node(n).parameters["rt_priority"] for n in ("sim", "perception", "navigation")] == [55, 52, 51]
     assert config.platform == "sitl" and config.discovery_range == "LOCALHOST" and config.restart_spacing_s == 2.0
     # every node's executable resolves exactly where `ros2 run <pkg> <exe>` looks
@@ -242,7 +243,7 @@ def test_cli_bad_input_is_one_line_before_anything_starts(tmp_path, args, expect
 
 def test_cli_help_and_wrapper(tmp_path):
     done = subprocess.run([str(ROOT / "c4d"), "--help"], capture_output=True, text=True, timeout=60)
-    assert done.returncode == 0 and "{up,fly,status}" in done.stdout
+    assert done.returncode == 0 and "{up,fly,status,param,resim}" in done.stdout
     for command in ("up", "fly", "status"):
         done = run_c4d(command, "--help", cwd=tmp_path)
         assert done.returncode == 0 and "--config" in done.stdout
@@ -338,8 +339,10 @@ def test_board_config_prepares_composed_processes(tmp_path):
     assert ground.argv[1:10] == ("--group", "ground", "c4d_mission/mission", "c4d_mission/payload", "c4d_health/health",
                                  "c4d_bridge_mavlink/bridge", "c4d_offboard/offboard", "c4d_data/recorder", "--ros-args")
     params = yaml.safe_load(Path(ground.argv[-1]).read_text())  # keyed by node: one rclpy context, six nodes
-    assert set(params) == {"/mission", "/payload", "/bridge", "/recorder"}  # health has no parameters here
-    assert params["/recorder"]["ros__parameters"] == {"output_dir": str(tmp_path / "run" / "flights")}
+    # every managed node is driven by c4d up's lifecycle manager (autostart false); health persists its thresholds
+    assert set(params) == {"/mission", "/payload", "/health", "/bridge", "/offboard", "/recorder"}
+    assert all(p["ros__parameters"].get("autostart") is False for p in params.values()), params
+    assert params["/recorder"]["ros__parameters"] == {"output_dir": str(tmp_path / "run" / "flights"), "autostart": False}
     with pytest.raises(ConfigError, match="compose .process composition. is supported by c4d up / c4d fly only"):
         launch_plan(str(BOARD), str(tmp_path / "run2"))
 

@@ -119,7 +119,7 @@ PARAMS = {
                               read_only=True),
     "gnss_integrity_action": Spec("cut", "on a SPOOFED GNSS verdict [cut | monitor]: stop fusing GNSS and undo its "
                                   "corrections since the onset, or only report the verdict", read_only=True),
-    "dead_reckoning_valid_s": Spec(10.0, "position kept valid this long after a SPOOFED GNSS cut-off [s]", 0.0, 120.0,
+    "dead_reckoning_valid_s": Spec(3.0, "position kept valid this long after a SPOOFED GNSS cut-off [s]", 0.0, 120.0,
                                    read_only=True),
     "vehicle": Spec("", "vehicle whose changed ekf.* parameters persist in $XDG_DATA_HOME/c4d/vehicles/<vehicle>/"
                     "navigation.yaml and are restored at start; empty: not persisted [name]", read_only=True),
