@@ -16,6 +16,9 @@ Wire format (the payload of a std_msgs/UInt8MultiArray on `navigation/journal` /
            nanoseconds coded as int32 deltas against a per-channel base (BASE records re-anchor a
            channel whose delta would not fit): ~5 bytes per IMU sample, ~14 per core tick, before zstd.
   SNAPSHOT after_seq (u32: the last batch consumed before it) + pickle of the node's state.
+  SNAPSHOT_PART  after_seq (u32), index (u16), count (u16) + a <= 16 KiB slice of that pickle. The nodes publish a
+           snapshot as parts, one per journal flush (10 Hz): sent whole, navigation's 200 KB burst overflowed the
+           recorder's loopback UDP socket and best-effort samples published at that instant were lost.
 Snapshots are read back with a restricted unpickler (only c4d, numpy and plain container classes).
 """
 
@@ -29,9 +32,11 @@ from collections.abc import Iterator
 from typing import Any
 
 MAGIC = b"C4DJ"
-JOURNAL, SNAPSHOT = 0, 1
+JOURNAL, SNAPSHOT, SNAPSHOT_PART = 0, 1, 2
 HEADER = struct.Struct("<4sBI")
 AFTER = struct.Struct("<I")
+PART = struct.Struct("<IHH")  # after_seq, index, count
+SNAPSHOT_PART_BYTES = 16 * 1024
 
 # channels of the delta-coded stamps
 CH_IMU, CH_GNSS, CH_BARO, CH_MAG, CH_RANGE, CH_EXT, CH_NOW, CH_GYRO, CH_STATE, CH_SURROUND = range(10)
@@ -163,13 +168,23 @@ class JournalWriter:
                    + _dumps(state))
         return out
 
+    def snapshot_parts(self, state: Any) -> list[bytes]:
+        """As `snapshot`, the state cut into SNAPSHOT_PART payloads of <= SNAPSHOT_PART_BYTES (the nodes publish
+        one per flush; `read_snapshot_parts` joins them)."""
+        out = [p for p in (self.take(),) if p is not None]
+        after, data, size = self.seq - 1 & 0xFFFFFFFF, _dumps(state), SNAPSHOT_PART_BYTES
+        count = max(1, -(-len(data) // size))
+        head = HEADER.pack(MAGIC, SNAPSHOT_PART, self.seq)
+        out += [head + PART.pack(after, i, count) + data[i * size:(i + 1) * size] for i in range(count)]
+        return out
+
 
 def parse_header(payload: bytes) -> tuple[int, int]:
     """(kind, seq) of a journal message; JournalError when it is not one."""
     if len(payload) < HEADER.size:
         raise JournalError(f"journal message of {len(payload)} bytes is shorter than its header")
     magic, kind, seq = HEADER.unpack_from(payload)
-    if magic != MAGIC or kind not in (JOURNAL, SNAPSHOT):
+    if magic != MAGIC or kind not in (JOURNAL, SNAPSHOT, SNAPSHOT_PART):
         raise JournalError("not a c4d journal message (magic or kind)")
     return kind, seq
 
@@ -280,8 +295,31 @@ def read_snapshot(payload: bytes) -> tuple[int, Any]:
     if kind != SNAPSHOT or len(payload) < HEADER.size + AFTER.size:
         raise JournalError("not a journal snapshot")
     (after,) = AFTER.unpack_from(payload, HEADER.size)
+    return after, _loads(payload[HEADER.size + AFTER.size:])
+
+
+def read_part(payload: bytes) -> tuple[int, int, int, bytes]:
+    """(after_seq, index, count, slice) of a SNAPSHOT_PART payload; JournalError when it is not one."""
+    kind, _ = parse_header(payload)
+    if kind != SNAPSHOT_PART or len(payload) < HEADER.size + PART.size:
+        raise JournalError("not a journal snapshot part")
+    after, index, count = PART.unpack_from(payload, HEADER.size)
+    if count == 0 or index >= count:
+        raise JournalError(f"snapshot part {index} of {count}")
+    return after, index, count, payload[HEADER.size + PART.size:]
+
+
+def read_snapshot_parts(parts: dict[int, bytes], count: int, after: int) -> tuple[int, Any]:
+    """(after_seq, state) from the slices of one snapshot by index; JournalError when one is missing."""
+    missing = [i for i in range(count) if i not in parts]
+    if missing:
+        raise JournalError(f"snapshot incomplete: {len(missing)} of {count} parts missing")
+    return after, _loads(b"".join(parts[i] for i in range(count)))
+
+
+def _loads(data: bytes) -> Any:
     try:
-        return after, _SafeUnpickler(io.BytesIO(payload[HEADER.size + AFTER.size:])).load()
+        return _SafeUnpickler(io.BytesIO(data)).load()
     except JournalError:
         raise
     except Exception as exc:  # whatever a damaged pickle raises: one line

@@ -72,3 +72,22 @@ def test_snapshot_round_trip_of_the_core():
     assert jr.parse_header(batch)[0] == jr.JOURNAL
     after, state = jr.read_snapshot(snap)
     assert after == 0 and isinstance(state["core"], GncCore) and state["cfg"].schedule == cfg.schedule
+
+
+def test_a_snapshot_in_parts_reads_back_whole_and_refuses_a_missing_part():
+    """Nodes publish their arm snapshot as <= 16 KiB parts, one per flush: a 200 KB message in one burst
+    overflowed the recorder's loopback socket and lost the best-effort samples sent at that instant."""
+    w = jr.JournalWriter()
+    w.tick(1, 1_000_000)
+    state = {"big": list(range(20000)), "name": "nav"}
+    out = w.snapshot_parts(state)
+    assert jr.parse_header(out[0])[0] == jr.JOURNAL  # the pending batch first
+    parts = [jr.read_part(p) for p in out[1:]]
+    assert len(parts) > 3 and all(len(p) <= jr.HEADER.size + jr.PART.size + jr.SNAPSHOT_PART_BYTES for p in out[1:])
+    after, _, count, _ = parts[0]
+    assert after == jr.parse_header(out[0])[1] and count == len(parts)
+    pieces = {index: piece for _, index, _, piece in reversed(parts)}  # any arrival order
+    assert jr.read_snapshot_parts(pieces, count, after) == (after, state)
+    del pieces[1]
+    with pytest.raises(jr.JournalError, match="1 of"):
+        jr.read_snapshot_parts(pieces, count, after)

@@ -51,13 +51,23 @@ class Flight:
 def _journal(name: str, payloads: list[bytes]) -> Journal:
     j = Journal()
     batches: dict[int, bytes] = {}
+    parts: dict[int, tuple[int, dict[int, bytes]]] = {}  # after_seq -> (count, index -> slice)
     for payload in payloads:
         try:
             kind, seq = jr.parse_header(payload)
             if kind == jr.SNAPSHOT and j.snapshot is None:
                 j.after_seq, j.snapshot = jr.read_snapshot(payload)
+            elif kind == jr.SNAPSHOT_PART:
+                after, index, count, piece = jr.read_part(payload)
+                parts.setdefault(after, (count, {}))[1][index] = piece
             elif kind == jr.JOURNAL:
                 batches[seq] = payload
+        except jr.JournalError as exc:
+            raise FlightError(f"{name}: {exc}") from None
+    if j.snapshot is None and parts:  # the first snapshot published in parts
+        after = min(parts)
+        try:
+            j.after_seq, j.snapshot = jr.read_snapshot_parts(parts[after][1], parts[after][0], after)
         except jr.JournalError as exc:
             raise FlightError(f"{name}: {exc}") from None
     if j.snapshot is None:
