@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "test" / "support"))
 sys.path.insert(0, str(ROOT / "bench"))
 from gnc_workload import flying_core, refresh  # noqa: E402
-from stall_probe import StallProbe  # noqa: E402
+from stall_probe import StallProbe, worst_line  # noqa: E402
 
 from c4d_common.barrier import FenceGeometry, Obstacle  # noqa: E402
 from c4d_common.geodesy import GeoOrigin  # noqa: E402
@@ -93,8 +93,7 @@ def main(argv: list[str] | None = None) -> int:
         median, p99 = statistics.median(values), values[int(0.99 * (len(values) - 1))]
         print(f"{name:<12} {median:>10.1f} {p99:>9.1f} {median / base:>6.2f}x {median / 20:>9.2f}% "
               f"{median * 0.01:>11.3f}%")
-    worst = max((s for _, s in stalls), default=0.0)
-    print(f"platform-stall probe: worst oversleep {worst:.2f} ms over {len(stalls)} s")
+    print(worst_line(stalls))
     return 0
 
 

@@ -30,7 +30,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "test" / "support"))
-from stall_probe import StallProbe  # noqa: E402
+from stall_probe import StallProbe, worst_line  # noqa: E402
 
 from c4d_data.catalog_synthetic import FlightSpec, write_flight  # noqa: E402
 
@@ -148,8 +148,7 @@ def main() -> int:
         stalls = probe.stop()
         if not args.dir:
             shutil.rmtree(work, ignore_errors=True)
-    worst = max((s for _, s in stalls), default=0.0)
-    print(f"platform-stall probe: worst oversleep {worst:.2f} ms over {len(stalls)} s")
+    print(worst_line(stalls))
     return 0
 
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "test" / "support"))
-from stall_probe import StallProbe  # noqa: E402
+from stall_probe import StallProbe, worst_line  # noqa: E402
 
 from c4d_sched.gcdsharp import gcdsharp  # noqa: E402
 from c4d_sched.network_exact import exact_offsets  # noqa: E402
@@ -115,8 +115,7 @@ def main() -> int:
             small_rows(flows, args.small, args.time_limit)
     finally:
         stalls = probe.stop()
-    worst = max((s for _, s in stalls), default=0.0)
-    print(f"platform-stall probe: worst oversleep {worst:.2f} ms over {len(stalls)} s")
+    print(worst_line(stalls))
     return 0
 
 

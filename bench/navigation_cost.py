@@ -29,7 +29,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "test" / "support"))
-from stall_probe import StallProbe  # noqa: E402
+from stall_probe import StallProbe, worst_line  # noqa: E402
 
 from c4d_common.geodesy import GeoOrigin  # noqa: E402
 from c4d_gnc.ekf import NavigationEkf  # noqa: E402
@@ -146,8 +146,7 @@ def main(argv: list[str] | None = None) -> int:
         cpu = f"{med[key] * rates[kind] / 1e4:.2f}% @{rates[kind]:g} Hz"
         print(f"{key:<13} {len(values):>6} {med[key]:>10.1f} {values[int(0.99 * (len(values) - 1))]:>9.1f} "
               f"{ratio:>13} {cpu:>16}")
-    worst = max((s for _, s in stalls), default=0.0)
-    print(f"platform-stall probe: worst oversleep {worst:.2f} ms over {len(stalls)} s")
+    print(worst_line(stalls))
     return 0
 
 

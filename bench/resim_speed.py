@@ -23,7 +23,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "test" / "support"))
-from stall_probe import StallProbe  # noqa: E402
+from stall_probe import StallProbe, worst_line  # noqa: E402
 
 from c4d_resim import flight as flight_module  # noqa: E402
 from c4d_resim.run import resimulate  # noqa: E402
@@ -97,8 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"journal size cost: {with_j / 2**20:.2f} MiB with, {without / 2**20:.2f} MiB without the journal topics "
           f"(rewritten alike): +{100 * (with_j - without) / without:.2f} % (journal payloads {payload / 1024:.0f} KiB "
           "before zstd)")
-    worst = max((s for _, s in stalls), default=0.0)
-    print(f"platform-stall probe: worst oversleep {worst:.2f} ms over {len(stalls)} s")
+    print(worst_line(stalls))
     return 0
 
 

@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT / "test" / "support"))
 sys.path.insert(0, str(ROOT / "bench"))
 from gnc_workload import core_executive_config  # noqa: E402
 from heavy_module import USER_TASKS  # noqa: E402
-from stall_probe import StallProbe  # noqa: E402
+from stall_probe import StallProbe, worst_line  # noqa: E402
 
 from c4d_sched.arith import gcd_all  # noqa: E402
 from c4d_sched.baselines import paparazzi  # noqa: E402
@@ -134,8 +134,7 @@ def main() -> int:
         random_cases(args.sets, args.time_limit)
     finally:
         stalls = probe.stop()
-    worst = max((s for _, s in stalls), default=0.0)
-    print(f"\nplatform-stall probe: worst oversleep {worst:.2f} ms over {len(stalls)} s")
+    print("\n" + worst_line(stalls))
     return 0
 
 

@@ -37,3 +37,9 @@ class StallProbe:
         self.proc.send_signal(signal.SIGKILL)
         out, _ = self.proc.communicate(timeout=10)
         return [(float(a), float(b)) for a, b in (line.split() for line in out.splitlines() if line.strip())]
+
+
+def worst_line(stalls: list[tuple[float, float]]) -> str:
+    """The line benchmarks print beside their figures: the probe's worst oversleep over the run."""
+    worst = max((s for _, s in stalls), default=0.0)
+    return f"platform-stall probe: worst oversleep {worst:.2f} ms over {len(stalls)} s"
