@@ -177,7 +177,12 @@ def test_board_layout_is_fewer_processes_pinned_and_niced(graph_up):
         assert {frozenset(os.sched_getaffinity(t)) for t in tids} == {frozenset(affinity)}, name
         assert {os.getpriority(os.PRIO_PROCESS, t) for t in tids} == {nice}, name
     core = state["core"]["pid"]
-    log = (graph_up.run_dir / "logs" / "core.log").read_text()
+    log_file = graph_up.run_dir / "logs" / "core.log"
+    # the core applies its real-time settings on activation, which c4d up's lifecycle manager drives after the
+    # graph is up: wait for the line that says what was applied
+    end = time.monotonic() + 30.0
+    while "real-time:" not in (log := log_file.read_text()) and time.monotonic() < end:
+        time.sleep(0.2)
     if "real-time: SCHED_FIFO priority 60" in log:  # where permitted (else the log says why, as a warning)
         tids = [int(t) for t in os.listdir(f"/proc/{core}/task")]
         assert {(os.sched_getscheduler(t), os.sched_getparam(t).sched_priority) for t in tids} == {(os.SCHED_FIFO, 60)}
