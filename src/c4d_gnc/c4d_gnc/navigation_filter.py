@@ -104,7 +104,11 @@ class NavigationFilter:
                  monitor: GnssIntegrityMonitor | None = None) -> None:
         self.ekf = ekf
         self.cfg = cfg = config or NavigationConfig()
-        self.on_ground = False  # disarmed = standing still: zero-velocity updates bound the drift
+        self._on_ground = False  # disarmed = standing still: zero-velocity updates bound the drift
+        # the vehicle's status (armed or not) given at least once (setting on_ground): until then neither a
+        # zero-velocity update (the vehicle may be flying: a restart in flight) nor home (_settled: the gyro
+        # bias could not converge without those updates)
+        self.status_known = False
         # commanded to stay put horizontally (a HOLD or LAND failsafe): without a horizontal source a loose
         # zero-velocity pseudo-measurement then bounds the drift; never while the vehicle may be flying a path
         # (on a 3 m/s circle it would cost 5 m in 6 s)
@@ -169,18 +173,39 @@ class NavigationFilter:
             self.tick(t)
         return True
 
+    @property
+    def on_ground(self) -> bool:
+        """Disarmed (from the vehicle's status); False until a status was given (status_known)."""
+        return self._on_ground
+
+    @on_ground.setter
+    def on_ground(self, value: bool) -> None:
+        self._on_ground, self.status_known = bool(value), True
+
+    def __setstate__(self, state: dict) -> None:
+        """Snapshots journaled before on_ground became a property (resim of older flights)."""
+        if "on_ground" in state:
+            state["_on_ground"], state["status_known"] = state.pop("on_ground"), True
+        self.__dict__.update(state)
+
     def _settled(self) -> bool:
         """Home (and so a valid position, and arming) waits, while disarmed on the ground, until the roll/pitch
         gyro bias has converged (zero-velocity updates: ~3 s after alignment), at most HOME_SETTLE_MAX_S. Why: a
         vehicle that takes off earlier flies its first seconds on a drifting attitude — in SITL under load
-        that made the IMU-only shadow disagree with GNSS by 1.6 m (a false SPOOFED verdict at take-off)."""
+        that made the IMU-only shadow disagree with GNSS by 1.6 m (a false SPOOFED verdict at take-off).
+        Before the vehicle's status is heard it waits too: no zero-velocity update has run, so the bias σ
+        is still its prior (CI: the core's status arrived late, home was set at once, SPOOFED 2 s after take-off)."""
         ekf = self.ekf
-        if not self.on_ground or not ekf.aligned or self.imu_t is None:
-            return True  # armed (or not yet aligned): as before — waiting would only delay home
+        if not ekf.aligned or self.imu_t is None:
+            return True  # not yet aligned: as before — waiting would only delay home
+        if self.status_known and not self.on_ground:
+            return True  # armed: as before
         if math.isnan(self._aligned_t):
             self._aligned_t = self.imu_t
+        if self.imu_t - self._aligned_t >= HOME_SETTLE_MAX_S:
+            return True
         sigma = math.sqrt(max(ekf.P[9, 9], ekf.P[10, 10]))
-        return sigma <= HOME_GYRO_BIAS_SIGMA or self.imu_t - self._aligned_t >= HOME_SETTLE_MAX_S
+        return self.status_known and sigma <= HOME_GYRO_BIAS_SIGMA
 
     def _push(self, t: float) -> None:
         ekf = self.ekf

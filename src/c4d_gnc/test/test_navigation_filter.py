@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 from c4d_gnc.ekf import NavigationEkf
-from c4d_gnc.navigation_filter import ZUPT_EVERY, NavigationFilter
+from c4d_gnc.navigation_filter import HOME_GYRO_BIAS_SIGMA, HOME_SETTLE_MAX_S, ZUPT_EVERY, NavigationFilter
 
 G = (0.0, 0.0, 9.80665)
 STILL = (0.0, 0.0, 0.0)
@@ -57,3 +57,35 @@ def test_terrain_distance_needs_a_fresh_finite_reading():
     assert math.isnan(f.terrain_distance(1.6))
     f.range_down(math.inf, 2.0)  # out of range
     assert math.isnan(f.terrain_distance(2.0))
+
+
+def _stand_still(f: NavigationFilter, t0: float, seconds: float) -> float:
+    """IMU at 500 Hz and GNSS at 10 Hz of a vehicle standing still; returns the last sample time."""
+    t = t0
+    for k in range(1, int(seconds * 500) + 1):
+        t = t0 + k * 0.002
+        f.imu(t, STILL, G)
+        if k % 50 == 0:
+            f.gnss(43.5629, 1.4815, 146.0, 0.25, 0.5, t)
+    return t
+
+
+def test_home_waits_for_the_vehicle_status_and_the_gyro_bias():
+    """Until the vehicle's status is heard no zero-velocity update runs, so the gyro bias cannot converge: home
+    (hence a valid position, hence arming) waits — CI's false SPOOFED at take-off had home set at once because
+    the core's status reached navigation late. Heard disarmed: home once the bias σ converged; at most
+    HOME_SETTLE_MAX_S after alignment whatever happens."""
+    f = aligned_filter()
+    t = _stand_still(f, 0.0, 5.0)
+    assert not f.status_known and f.ekf.origin is None
+    f.on_ground = True
+    assert f.status_known
+    while f.ekf.origin is None and t < 9.0:
+        t = _stand_still(f, t, 0.1)
+    assert f.ekf.origin is not None, "home never set on the ground"
+    assert math.sqrt(max(f.ekf.P[9, 9], f.ekf.P[10, 10])) <= HOME_GYRO_BIAS_SIGMA
+    never = aligned_filter()
+    t = _stand_still(never, 0.0, HOME_SETTLE_MAX_S - 0.5)
+    assert never.ekf.origin is None
+    _stand_still(never, t, 3.0)  # the cap, then 20 fixes
+    assert never.ekf.origin is not None and not never.status_known
