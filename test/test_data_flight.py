@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import struct
 import subprocess
 import time
 
@@ -171,7 +172,14 @@ def test_sim_imu_keeps_its_rate_and_stamps(flights):
     decoders = Decoders()
     for path in flights["files"]:
         bag = open_bag(path)
-        imu = [(m.sequence, decoders.decode(t, m.data).header.stamp) for t, m in iter_messages(bag, ["/sensors/imu"])]
+        imu, undecodable = [], []
+        for t, m in iter_messages(bag, ["/sensors/imu"]):
+            try:
+                imu.append((m.sequence, decoders.decode(t, m.data).header.stamp))
+            except (ValueError, IndexError, struct.error) as exc:  # a damaged sample: say which and what it holds
+                head = bytes(m.data[:48]).hex()
+                undecodable.append(f"#{m.sequence} log {m.log_time} {len(m.data)} B {type(exc).__name__} {head}")
+        assert not undecodable, f"{path.name}: {len(undecodable)} IMU samples not decodable: {undecodable[:3]}"
         stamps = sorted(s.sec + s.nanosec * 1e-9 for _, s in imu)
         span = stamps[-1] - stamps[0]
         published = max(q for q, _ in imu) - min(q for q, _ in imu) + 1

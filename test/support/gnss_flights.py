@@ -257,7 +257,8 @@ def fly(seed: int, duration_s: float = 100.0, fault: Fault | None = None, extern
                         t=t, position=fix, sigma_h=sample.sigma_h, sigma_v=sample.sigma_v, predicted=ekf.p.copy(),
                         predicted_cov=ekf.P[0:3, 0:3].copy(), velocity=ekf.v.copy(),
                         inertial_position=shadow_p.copy(), inertial_velocity=shadow_v.copy(), external_position=ext,
-                        gyro_bias_sigma=math.sqrt(max(ekf.P[9, 9], ekf.P[10, 10])))
+                        gyro_bias_sigma=math.sqrt(max(ekf.P[9, 9], ekf.P[10, 10])),
+                        velocity_sigma=math.sqrt(max(ekf.P[3, 3], ekf.P[4, 4])))
                     verdict = monitor.check_fix(check)
                     result.calls.append(check)
                     result.verdicts.append((t, verdict))

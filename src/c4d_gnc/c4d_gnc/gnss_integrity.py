@@ -92,6 +92,7 @@ class IntegrityConfig:
     cusum_reference_m: float = 0.6  # [m] mismatch below this drains the drift CUSUM
     cusum_alarm_m_s: float = 1.0  # [m·s] CUSUM of the mismatch excess: alarm
     inertial_bias_sigmas: float = 3.0  # k: the inertial thresholds widen by k x the mismatch an unconverged gyro bias explains
+    inertial_velocity_sigmas: float = 3.0  # k: the window's threshold widens by k x σ_v·T (the re-basing velocity's error)
     external_alarm_m: float = 2.0  # [m] horizontal distance to the external source (floor)
     external_sigmas: float = 5.0  # ... or this many σ of the difference, whichever is larger
     external_sigma_m: float = 0.1  # [m] 1σ of the external source's position
@@ -137,6 +138,10 @@ class FixCheck:
     # [rad/s] 1σ of the estimate's roll/pitch gyro bias: unconverged (seconds after alignment: ~0.02), the
     # attitude the shadow integrates with drifts, and so does the shadow (g·σ·T³/6 over a window T)
     gyro_bias_sigma: float = 0.0
+    # [m/s] 1σ of the estimate's horizontal velocity at t: the shadow is re-based to that velocity at the window
+    # start, so its error σ_v carries into the window's mismatch as σ_v·T (SITL, braking at a geofence barrier:
+    # 0.3 m/s, 1.7 m over 3 s — a false SPOOFED before this margin)
+    velocity_sigma: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -169,6 +174,7 @@ class _Sample:
     inertial_velocity: np.ndarray
     velocity: np.ndarray
     gyro_bias_sigma: float
+    velocity_sigma: float = 0.0  # default: windows in snapshots journaled before this field (resim)
 
 
 class GnssIntegrityMonitor:
@@ -278,7 +284,7 @@ class GnssIntegrityMonitor:
         sample = _Sample(t, np.asarray(fix.position, dtype=float)[:2].copy(),
                          np.asarray(fix.inertial_position, dtype=float)[:2].copy(),
                          np.asarray(fix.inertial_velocity, dtype=float)[:2].copy(),
-                         np.asarray(fix.velocity, dtype=float)[:2].copy(), fix.gyro_bias_sigma)
+                         np.asarray(fix.velocity, dtype=float)[:2].copy(), fix.gyro_bias_sigma, fix.velocity_sigma)
         window = self._window
         if window and t - window[-1].t > cfg.loss_timeout_s:
             window.clear()  # a gap: the displacement is compared over continuous fixes only
@@ -297,7 +303,9 @@ class GnssIntegrityMonitor:
         # 1.6 m in SITL under load, a false SPOOFED at take-off before this margin)
         span = t - start.t
         margin = cfg.inertial_bias_sigmas * GRAVITY * start.gyro_bias_sigma * span**3 / 6.0
-        score = mismatch / (cfg.inertial_alarm_m * scale + margin)
+        # ... and what the re-basing velocity's error explains (the window only: the CUSUM's slow drifts outlast it)
+        window_margin = margin + cfg.inertial_velocity_sigmas * start.velocity_sigma * span
+        score = mismatch / (cfg.inertial_alarm_m * scale + window_margin)
         if score >= cfg.warning_fraction:
             self._mismatch_onset = min(self._mismatch_onset, start.t)
         else:

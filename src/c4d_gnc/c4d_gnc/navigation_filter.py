@@ -316,7 +316,8 @@ class NavigationFilter:
         fix = FixCheck(t=stamp, position=z, sigma_h=sigma_h, sigma_v=sigma_v, predicted=row[P].copy(),
                        predicted_cov=ekf.P[0:3, 0:3].copy(), velocity=row[V].copy(), inertial_position=row[PI].copy(),
                        inertial_velocity=row[VI].copy(), external_position=self._external_at(stamp, row),
-                       gyro_bias_sigma=math.sqrt(max(ekf.P[9, 9], ekf.P[10, 10])))
+                       gyro_bias_sigma=math.sqrt(max(ekf.P[9, 9], ekf.P[10, 10])),
+                       velocity_sigma=math.sqrt(max(ekf.P[3, 3], ekf.P[4, 4])))
         self._on_verdict(self.monitor.check_fix(fix))
         if not self.verdict.fuse and self.cfg.integrity_cut:
             return

@@ -95,6 +95,31 @@ def test_a_1_m_s_drift_is_spoofing_within_2_s_with_its_onset() -> None:
     assert verdicts[-1][1].alarm_age_s == pytest.approx(verdicts[-1][0] - t)
 
 
+def test_the_window_allows_for_the_estimate_s_velocity_error_and_still_catches_a_drift() -> None:
+    """The shadow is re-based to the estimate's velocity at the window start: an estimate 0.6 m/s off there (braking
+    hard, SITL) carries 1.8 m into a 3 s window. Given the estimate's σ_v (0.15 m/s) the window allows for it —
+    without it, a false SPOOFED; a 1 m/s drift is still caught within 3 s at a nominal σ_v of 0.07 m/s."""
+
+    def stream(velocity_sigma: float, velocity_error: float, drift: float, t0: float = 0.0) -> list[Verdict]:
+        monitor, rng, out = GnssIntegrityMonitor(), random.Random(5), []
+        for k in range(round(10.0 * RATE_HZ)):
+            t = t0 + k / RATE_HZ
+            base = fix_at(t, rng)
+            bump = velocity_error if 3.0 <= t < 3.5 else 0.0  # a wrong estimate velocity at some window starts
+            spoof = np.array([drift * max(0.0, t - 5.0), 0.0, 0.0])
+            out.append(monitor.check_fix(FixCheck(
+                t=t, position=base.position + spoof, sigma_h=SIGMA_H, sigma_v=0.5, predicted=base.predicted,
+                predicted_cov=base.predicted_cov, velocity=base.velocity + np.array([bump, 0.0, 0.0]),
+                inertial_position=base.inertial_position, inertial_velocity=base.inertial_velocity,
+                velocity_sigma=velocity_sigma)))
+        return out
+
+    assert any(v.state == IntegrityState.SPOOFED for v in stream(0.0, 0.6, 0.0))
+    assert not any(v.state == IntegrityState.SPOOFED for v in stream(0.15, 0.6, 0.0))
+    caught = [k / RATE_HZ for k, v in enumerate(stream(0.07, 0.0, 1.0)) if v.state == IntegrityState.SPOOFED]
+    assert caught and caught[0] - 5.0 < 3.0, caught[:1]
+
+
 def test_a_20_m_jump_is_spoofing_at_once() -> None:
     monitor, rng = GnssIntegrityMonitor(), random.Random(3)
     fly(monitor, 0.0, 20.0, rng)
