@@ -60,10 +60,12 @@ class Rig:
 
     def __init__(self, flt) -> None:
         self.f, self.t, self.k = flt, 0.0, 0
-        while self.t < 3.0:
+        flt.on_ground = True  # disarmed: zero-velocity updates converge the gyro bias, then home is set
+        while self.t < 3.0 or (flt.ekf.origin is None and self.t < 15.0):
             self.imu()
             if self.k % 50 == 0:
                 self.gnss()
+        flt.on_ground = False  # then armed: the figures are the flying path's
 
     def imu(self) -> None:
         self.k += 1
