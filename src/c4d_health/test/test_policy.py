@@ -159,7 +159,7 @@ def test_obstacle_rules_and_thresholds():
 
 
 def test_gnss_integrity_rules_hold_then_land_without_an_alternative_and_warn_with_one():
-    assert POLICY.rules["gnss_spoofed"] == Rule(Action.HOLD, 1.0, True, Action.LAND, 3.0)
+    assert POLICY.rules["gnss_spoofed"] == Rule(Action.HOLD, 1.0, True, Action.LAND, 1.0)
     assert POLICY.rules["gnss_jammed"] == Rule(Action.HOLD, 2.0, True, Action.LAND, 10.0)
     assert POLICY.rules["gnss_spoofed_switched"].action == POLICY.rules["gnss_jammed_switched"].action == Action.WARN
     arbiter = FailsafeArbiter(POLICY)
