@@ -167,8 +167,8 @@ def test_gnss_integrity_rules_hold_then_land_without_an_alternative_and_warn_wit
     assert arbiter.update(10.0, spoofed, in_air=True) == Action.NONE  # the status may precede the switch
     assert arbiter.update(10.9, spoofed, in_air=True) == Action.NONE
     assert arbiter.update(11.0, spoofed, in_air=True) == Action.HOLD
-    assert arbiter.update(13.9, spoofed, in_air=True) == Action.HOLD
-    assert arbiter.update(14.0, {}, in_air=True) == Action.LAND  # lands even if the verdict cleared meanwhile
+    assert arbiter.update(11.9, spoofed, in_air=True) == Action.HOLD
+    assert arbiter.update(12.0, {}, in_air=True) == Action.LAND  # lands even if the verdict cleared meanwhile
     switched = FailsafeArbiter(POLICY)
     # the verdict comes first, the switch 0.5 s later: only a warning is latched
     assert switched.update(0.0, spoofed, in_air=True) == Action.NONE
