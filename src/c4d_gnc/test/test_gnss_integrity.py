@@ -100,10 +100,10 @@ def test_the_window_allows_for_the_estimate_s_velocity_error_and_still_catches_a
     hard, SITL) carries 1.8 m into a 3 s window. Given the estimate's σ_v (0.15 m/s) the window allows for it —
     without it, a false SPOOFED; a 1 m/s drift is still caught within 3 s at a nominal σ_v of 0.07 m/s."""
 
-    def stream(velocity_sigma: float, velocity_error: float, drift: float, t0: float = 0.0) -> list[Verdict]:
+    def stream(velocity_sigma: float, velocity_error: float, drift: float) -> list[Verdict]:
         monitor, rng, out = GnssIntegrityMonitor(), random.Random(5), []
         for k in range(round(10.0 * RATE_HZ)):
-            t = t0 + k / RATE_HZ
+            t = k / RATE_HZ
             base = fix_at(t, rng)
             bump = velocity_error if 3.0 <= t < 3.5 else 0.0  # a wrong estimate velocity at some window starts
             spoof = np.array([drift * max(0.0, t - 5.0), 0.0, 0.0])
