@@ -30,7 +30,6 @@ import pickle
 import signal
 import sys
 import time
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import partial
@@ -174,7 +173,6 @@ class CoreNode:
         self.status = StatusCadence()
         # input consumption journal for `resim` (c4d_gnc.journal): every tick's clock and inputs, a snapshot at arm
         self.journal, self.now_ns, self.journal_k = jr.JournalWriter(), 0, 0
-        self.journal_parts: deque[bytes] = deque()  # the arm snapshot's parts still to publish (one per flush)
         self.pub_journal = node.create_publisher(UInt8MultiArray, CORE_JOURNAL.name, CORE_JOURNAL.qos)
         self.drainer = Drainer(node)
         # the 500 Hz inputs and output go serialized (c4d_gnc.wire: ~1 µs instead of ~40 µs per message)
@@ -323,9 +321,9 @@ class CoreNode:
         self.core.inputs.now = self.clock_s()
         core = self.core
         if not core.out.armed and any(r.command in ARMING for r in core.pending):  # resim's start point
-            self.journal_parts.extend(self.journal.snapshot_parts({
+            self.journal.queue_snapshot({
                 "core": core, "geofence": self.geofence, "origin": self.origin, "cfg": self.cfg, "params": self.params,
-                "ranges": {n: (p.low, p.high) for n, p in PARAMS.items()}}))
+                "ranges": {n: (p.low, p.high) for n, p in PARAMS.items()}})
 
     def latch(self, k: int) -> None:
         if self.live is not None:
@@ -341,11 +339,8 @@ class CoreNode:
         self.journal.tick(k, self.now_ns)  # after the tick: a retune journaled at the latch precedes it
         if k - self.journal_k >= JOURNAL_TICKS:
             self.journal_k = k
-            payload = self.journal.take()
-            if payload is not None:
+            for payload in self.journal.flush():
                 self.pub_journal.publish(UInt8MultiArray(data=array.array("B", payload)))
-            if self.journal_parts:  # one snapshot part per flush (c4d_gnc.journal: a whole one floods readers)
-                self.pub_journal.publish(UInt8MultiArray(data=array.array("B", self.journal_parts.popleft())))
 
     def status_task(self, k: int) -> None:
         out, now = self.core.out, self.core.inputs.now

@@ -28,6 +28,7 @@ import io
 import pickle
 import struct
 import types
+from collections import deque
 from collections.abc import Iterator
 from typing import Any
 
@@ -92,6 +93,19 @@ class JournalWriter:
         self.base = [0] * CHANNELS
         self.seq = 0
         self.k = 0
+        self.outbox: deque[bytes] = deque()  # a queued snapshot's payloads, published one per flush
+
+    def queue_snapshot(self, state: Any) -> None:
+        """Queue `snapshot_parts(state)`; `flush()` hands them out one at a time (a whole snapshot in one burst
+        overflowed the recorder's loopback socket)."""
+        self.outbox.extend(self.snapshot_parts(state))
+
+    def flush(self) -> list[bytes]:
+        """What a node publishes at each journal flush, in order: the pending batch, then one queued payload."""
+        out = [p for p in (self.take(),) if p is not None]
+        if self.outbox:
+            out.append(self.outbox.popleft())
+        return out
 
     def _delta(self, channel: int, ns: int) -> int:
         d = ns - self.base[channel]

@@ -31,7 +31,6 @@ import math
 import pickle
 import struct
 import sys
-from collections import deque
 from collections.abc import Callable
 
 import numpy as np
@@ -228,7 +227,6 @@ class NavigationNode:
         self.send_tf = tf_sender(node)
         # input consumption journal for `resim` (c4d_gnc.journal): batches at 10 Hz, a snapshot at arm
         self.journal, self.params = jr.JournalWriter(), {}
-        self.journal_parts: deque[bytes] = deque()  # the arm snapshot's parts still to publish (one per flush)
         self.pub_journal = node.create_publisher(UInt8MultiArray, NAV_JOURNAL.name, NAV_JOURNAL.qos)
         node.create_timer(JOURNAL_PERIOD_S, self.flush_journal)
         node.create_timer(LOG_PERIOD_S, self.log_status)
@@ -246,15 +244,12 @@ class NavigationNode:
         node.create_subscription(VehicleStatus, STATUS.name, self.on_status, STATUS.qos)
 
     def flush_journal(self) -> None:
-        payload = self.journal.take()
-        if payload is not None:
+        for payload in self.journal.flush():
             self.pub_journal.publish(UInt8MultiArray(data=array.array("B", payload)))
-        if self.journal_parts:  # one snapshot part per flush (c4d_gnc.journal: a whole one flooded the recorder)
-            self.pub_journal.publish(UInt8MultiArray(data=array.array("B", self.journal_parts.popleft())))
 
     def on_status(self, msg: VehicleStatus) -> None:
         if msg.armed and self.filter.on_ground:  # the arm edge: resim's start point
-            self.journal_parts.extend(self.journal.snapshot_parts({"filter": self.filter, "params": self.params}))
+            self.journal.queue_snapshot({"filter": self.filter, "params": self.params})
         self.filter.on_ground = not msg.armed
         self.filter.station_keeping = msg.failsafe_action in (VehicleStatus.FAILSAFE_HOLD, VehicleStatus.FAILSAFE_LAND)
         self.journal.status((0 if self.filter.on_ground else jr.STATUS_ARMED)

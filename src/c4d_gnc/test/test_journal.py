@@ -91,3 +91,20 @@ def test_a_snapshot_in_parts_reads_back_whole_and_refuses_a_missing_part():
     del pieces[1]
     with pytest.raises(jr.JournalError, match="1 of"):
         jr.read_snapshot_parts(pieces, count, after)
+
+
+def test_a_queued_snapshot_goes_out_one_payload_per_flush_after_each_batch():
+    """What both nodes publish at each journal flush: the batch that is pending, then one queued snapshot payload."""
+    w = jr.JournalWriter()
+    w.tick(1, 1_000_000)
+    w.queue_snapshot({"big": list(range(20000))})
+    queued = len(w.outbox)
+    assert queued > 3
+    flushes = []
+    for k in range(queued + 2):
+        w.tick(k + 2, (k + 2) * 1_000_000)
+        flushes.append(w.flush())
+    assert all(len(f) == 2 for f in flushes[:queued]) and all(len(f) == 1 for f in flushes[queued:])
+    assert all(jr.parse_header(f[0])[0] == jr.JOURNAL for f in flushes)  # each flush's own batch first
+    assert jr.parse_header(flushes[0][1])[0] == jr.JOURNAL  # the batch pending when the snapshot was taken
+    assert all(jr.parse_header(f[1])[0] == jr.SNAPSHOT_PART for f in flushes[1:queued]) and not w.outbox
