@@ -43,14 +43,16 @@ def test_mavlink_core_entries_match_the_core_table():
 
 def test_mavlink_navigation_and_health_entries_match_their_tables():
     """EKF2_* / BAT_* / COM_OF_LOSS_T and the C4D_* ones: live, on the node that owns them, same
-    bounds, the default EKF configuration's / the bundled failsafe policy's values; every EKF
-    tunable and every top-level policy threshold is reachable (the per-event delays are ROS-only)."""
+    bounds, the default EKF configuration's (drag from quad_x, the node's default) / the bundled failsafe
+    policy's values; every EKF tunable and every top-level policy threshold is reachable (the per-event delays are ROS-only)."""
+    from c4d_gnc.ekf import drag_config
     from c4d_gnc.live_navigation import navigation_table
     from c4d_health.health_node import default_policy
     from c4d_health.live_policy import policy_table
     from c4d_health.policy import FailsafePolicy
 
-    tables = {"navigation": navigation_table(), "health": policy_table(FailsafePolicy.from_yaml(default_policy()))}
+    navigation = navigation_table(drag_config(QUAD))
+    tables = {"navigation": navigation, "health": policy_table(FailsafePolicy.from_yaml(default_policy()))}
     for node, table in tables.items():
         mapped = set()
         for spec in (p for p in TABLE if p.node == node):

@@ -108,7 +108,7 @@ class ClosedLoop:
             position = (position[0] + drift, position[1], position[2])
             velocity = (velocity[0] + 0.5, velocity[1], velocity[2])
         state = StateSample(now, position, velocity, q, self._noisy(s.angular_velocity, n.gyro),
-                            valid_position=self.position_lost_at is None,
+                            valid_position=self.position_lost_at is None, valid_velocity=self.position_lost_at is None,
                             terrain_distance=math.nan if self.range_lost else s.position[2])
         inputs = self.core.inputs
         inputs.now, inputs.state = now, state

@@ -116,7 +116,8 @@ def _live(node: str, name: str, ros: str, default: float, low: float, high: floa
     return ParamSpec(name, default, low, high, node=node, ros_names=(ros,), doc=doc, live=True)
 
 
-# The navigation node's EKF noises and gates (c4d_gnc.live_navigation; defaults: EkfConfig's). PX4's
+# The navigation node's EKF noises and gates (c4d_gnc.live_navigation; defaults: EkfConfig's, the drag
+# coefficients the bundled quad_x's drag over mass as the node's default airframe). PX4's
 # EKF2_* names where PX4 has the parameter (c4d's units: the bias walks are per sqrt(s), see docs).
 NAVIGATION_TABLE: tuple[ParamSpec, ...] = tuple(_live("navigation", *row) for row in (
     ("EKF2_GYR_NOISE", "ekf.gyro_noise", 0.003, 1e-5, 1.0, "[rad/s] gyro noise, 1 sigma per sample"),
@@ -131,6 +132,10 @@ NAVIGATION_TABLE: tuple[ParamSpec, ...] = tuple(_live("navigation", *row) for ro
     ("C4D_EKF_ZVEL_SIG", "ekf.zero_velocity_sigma", 0.05, 1e-3, 10.0, "[m/s] zero-velocity update sigma on the ground"),
     ("C4D_EKF_NOAID_V", "ekf.unaided_velocity_sigma", 1.0, 0.0, 100.0, "[m/s] unaided-flight velocity sigma (0 = off)"),
     ("C4D_EKF_HDG_TOUT", "ekf.heading_valid_s", 2.0, 0.05, 600.0, "[s] heading valid this long after a mag sample"),
+    ("EKF2_MCOEF", "ekf.drag_horizontal_per_s", 0.25 / 1.5, 0.0, 10.0, "[1/s] horizontal drag per mass (0 = no drag fusion)"),
+    ("C4D_EKF_DRAG_V", "ekf.drag_vertical_per_s", 0.35 / 1.5, 0.0, 10.0, "[1/s] vertical drag per unit mass"),
+    ("C4D_EKF_DRAG_NS", "ekf.drag_noise", 0.02, 1e-4, 10.0, "[m/s^2] drag fusion specific force sigma (0.1 s mean)"),
+    ("EKF2_WIND_NSD", "ekf.wind_walk", 0.1, 0.0, 10.0, "[m/s/sqrt(s)] horizontal wind random walk"),
 ))
 
 # The health node's failsafe thresholds and timeouts (c4d_health.live_policy; defaults: the bundled

@@ -18,9 +18,11 @@ from __future__ import annotations
 
 import math
 
+from c4d_common.airframe import AirframeError, airframe_by_ref
 from c4d_common.share import share_file
 from c4d_common.tunable import TunableError, TunableTable, VehicleStore
 from c4d_gnc.core_config import CoreConfigError, load_core_config
+from c4d_gnc.ekf import drag_config
 from c4d_gnc.live_gains import core_table
 from c4d_gnc.live_navigation import navigation_table
 from c4d_health.live_policy import policy_table
@@ -42,14 +44,14 @@ def _table_and_store(config: SystemConfig, vehicle: str | None, node: str = "cor
         return str(params.get(key) or "").replace("${config_dir}", str(config.path.parent))
     try:
         if node == "navigation":
-            table = navigation_table()
+            table = navigation_table(drag_config(airframe_by_ref(path("airframe") or "quad_x")))
         elif node == "health":
             table = policy_table(FailsafePolicy.from_yaml(path("policy_file") or share_file("c4d_health", "config",
                                                                                            "failsafe.yaml")))
         else:
             table = core_table(load_core_config(path("config") or None, path("airframe") or None).airframe)
         return table, VehicleStore.of(name, node)
-    except (CoreConfigError, PolicyError, TunableError) as exc:
+    except (CoreConfigError, PolicyError, TunableError, AirframeError) as exc:
         raise ConfigError(str(exc)) from None
 
 

@@ -183,6 +183,11 @@ def load_airframe(path: str | Path) -> Airframe:
     return airframe_from_dict(read_yaml_mapping(path, "airframe", AirframeError))
 
 
+def airframe_by_ref(ref: str) -> Airframe:
+    """An airframe named by a parameter: a YAML file path (ends .yaml / .yml) or a bundled name."""
+    return load_airframe(Path(ref) if ref.endswith((".yaml", ".yml")) else default_airframe_path(ref))
+
+
 def default_airframe_path(name: str = "quad_x") -> Path:
     """Path of a bundled airframe (installed share/ or the source tree)."""
     candidate = share_file("c4d_common", "config", "airframes", f"{name}.yaml")

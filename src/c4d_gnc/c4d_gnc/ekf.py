@@ -1,11 +1,17 @@
-"""Navigation filter: 15-state error-state EKF (position, velocity, attitude, gyro and accel bias).
+"""Navigation filter: 17-state error-state EKF (position, velocity, attitude, gyro and accel bias, wind).
 
-Nominal state in ENU / FLU: p, v, q (body → world), b_g, b_a. Prediction integrates each IMU
-sample (strapdown: a = R(f − b_a) + g); the error covariance follows δṗ = δv,
-δv̇ = −[R(f − b_a)]×δθ − R δb_a, δθ̇ = −R δb_g (attitude error in the world frame), biases as
-random walks. Updates: a position measurement on any subset of the axes (GNSS, external pose,
+Nominal state in ENU / FLU: p, v, q (body → world), b_g, b_a, w (horizontal wind). Prediction
+integrates each IMU sample (strapdown: a = R(f − b_a) + g); the error covariance follows δṗ = δv,
+δv̇ = −[R(f − b_a)]×δθ − R δb_a, δθ̇ = −R δb_g (attitude error in the world frame), biases and
+wind as random walks. Updates: a position measurement on any subset of the axes (GNSS, external pose,
 range height; NavigationFilter compares delayed ones with the state at their sample time), a yaw
-measurement (external heading), barometric altitude (offset learnt at home), magnetometer heading.
+measurement (external heading), barometric altitude (offset learnt at home), magnetometer heading,
+and multirotor drag (`update_drag`: the body-frame horizontal specific force is the linear drag of
+the air-relative velocity v − w — thrust has no horizontal body component — plus the accelerometer
+bias). Drag is what keeps the velocity observable without any position source: a vehicle that lost
+or cut off GNSS dead-reckons on it instead of on integrated tilt errors (PX4's EKF2 fuses it for the
+same reason, EKF2_DRAG_CTRL). It needs the vehicle's drag per unit mass (`drag_horizontal_per_s`,
+`drag_vertical_per_s`; the navigation node takes them from the airframe); 0 = not fused.
 Every correction is passed to `on_correction` (the filter's state history and GNSS journal).
 An IMU-only dead-reckoning shadow (`pi`, `vi`) is integrated alongside and never corrected: the
 GNSS integrity monitor compares fixes with it. Static alignment (roll and pitch from
@@ -21,11 +27,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from c4d_common import quat
+from c4d_common.airframe import Airframe
 from c4d_common.geodesy import GeoOrigin, altitude_at_pressure
 
 GRAVITY = 9.80665
@@ -48,6 +55,26 @@ class EkfConfig:
     unaided_velocity_sigma: float = 1.0  # [m/s] horizontal velocity pseudo-measurement (0) in flight without aiding; 0 = off
     home_fixes: int = 20  # GNSS fixes averaged to set home (the local frame's geodetic origin)
     heading_valid_s: float = 2.0
+    # drag fusion: linear drag / mass of the air-relative velocity along the world's horizontal axes and
+    # its vertical one (the airframe's drag.linear_n_per_m_s / mass_kg); 0 = no drag fusion
+    drag_horizontal_per_s: float = 0.0  # [1/s]
+    drag_vertical_per_s: float = 0.0  # [1/s]
+    drag_noise: float = 0.02  # [m/s²] σ of a 0.1 s mean horizontal specific force against the drag model
+    wind_walk: float = 0.1  # [m/s/√s] random walk of the horizontal wind
+
+
+def drag_config(airframe: Airframe, cfg: EkfConfig | None = None) -> EkfConfig:
+    """`cfg` (default EkfConfig()) with drag fusion on for `airframe`: its world-axis linear drag over its
+    mass (the simulator's model, c4d_sim.plant; quad_x: 0.167 / 0.233 1/s)."""
+    cx, cy, cz = airframe.drag_linear
+    return replace(cfg or EkfConfig(), drag_horizontal_per_s=0.5 * (cx + cy) / airframe.mass,
+                   drag_vertical_per_s=cz / airframe.mass)
+
+
+N_STATES = 17  # error state: δp, δv, δθ, δb_g, δb_a (3 each), δw (horizontal wind, 2)
+WIND = slice(15, 17)
+VELOCITY_VALID_SIGMA = 0.5  # [m/s] dead reckoning on drag: the horizontal velocity is valid below this σ
+WIND_PRIOR_SIGMA = 3.0  # [m/s] no wind is known before drag fusion has learnt it in flight
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -72,19 +99,26 @@ class NavigationEkf:
         self.q: quat.Quat = quat.IDENTITY
         self.bg = np.zeros(3)
         self.ba = np.zeros(3)
-        self.P = np.diag([100.0] * 3 + [4.0] * 3 + [0.05] * 3 + [0.02**2] * 3 + [0.2**2] * 3)
+        # a horizontal position source is fused (NavigationFilter sets it): the wind is observable and walks;
+        # without one it is held as last learnt, so drag measures the ground velocity against it instead of
+        # the wind absorbing the dead-reckoning drift (PX4's EKF2 likewise stops learning the wind then)
+        self.horizontal_aiding = True
+        self.wind = np.zeros(2)  # [m/s] horizontal wind (ENU), learnt by drag fusion against the aiding
+        self.P = np.diag([100.0] * 3 + [4.0] * 3 + [0.05] * 3 + [0.02**2] * 3 + [0.2**2] * 3
+                         + [WIND_PRIOR_SIGMA**2] * 2)
         self.aligned = False
         self.origin: GeoOrigin | None = None
         self.baro_offset: float | None = None
         self.t = 0.0
         self.pi = np.zeros(3)  # dead-reckoning shadow: IMU-only integration, never corrected
         self.vi = np.zeros(3)
-        self.on_correction: Callable[[np.ndarray], None] | None = None  # every update's δx (15,)
+        self.on_correction: Callable[[np.ndarray], None] | None = None  # every update's δx (N_STATES,)
         self.last_gps = -math.inf
         self.last_position = -math.inf  # last horizontal position fused (any source)
         self.valid_until = -math.inf  # dead reckoning declared valid until then (after a source cut-off)
         self.last_mag = -math.inf
-        self.rejected = {"gps": 0, "baro": 0, "mag": 0}
+        self.last_drag = -math.inf  # last drag measurement fused
+        self.rejected = {"gps": 0, "baro": 0, "mag": 0, "drag": 0}
         self.resets = 0  # position resets to GNSS after an outage
         self.accel_world = np.zeros(3)
         self.omega = np.zeros(3)
@@ -92,6 +126,19 @@ class NavigationEkf:
         self._align_mag: np.ndarray | None = None
         self._home_fixes: list[tuple[float, float, float]] = []
         self._home_baro: list[float] = []
+
+    def __setstate__(self, state: dict) -> None:
+        """Snapshots journaled before the wind states (resim of older flights): no wind, its prior σ."""
+        if "wind" not in state:
+            P = np.zeros((N_STATES, N_STATES))
+            n = len(state["P"])
+            P[:n, :n] = state["P"]
+            P[n:, n:] = np.eye(N_STATES - n) * WIND_PRIOR_SIGMA**2
+            state["P"], state["wind"] = P, np.zeros(2)
+            state["rejected"] = {**state.get("rejected", {}), "drag": 0}
+        state.setdefault("horizontal_aiding", True)
+        state.setdefault("last_drag", -math.inf)
+        self.__dict__.update(state)
 
     # ---------------------------------------------------------------- alignment
     def align(self, accel: Vec, mag: Vec | None) -> bool:
@@ -139,7 +186,7 @@ class NavigationEkf:
         self.vi += a * dt
         self.q = quat.integrate(self.q, (float(w[0]), float(w[1]), float(w[2])), dt)
         self.accel_world, self.omega = a, w
-        phi = np.eye(15)
+        phi = np.eye(N_STATES)
         phi[0:3, 3:6] = np.eye(3) * dt
         phi[3:6, 6:9] = -_skew(R @ f) * dt
         phi[3:6, 12:15] = -R * dt
@@ -150,6 +197,7 @@ class NavigationEkf:
             np.full(3, (cfg.gyro_noise * dt) ** 2),
             np.full(3, cfg.gyro_bias_walk**2 * dt),
             np.full(3, cfg.accel_bias_walk**2 * dt),
+            np.full(2, cfg.wind_walk**2 * dt if self.horizontal_aiding else 0.0),
         ])
         self.P = phi @ self.P @ phi.T + np.diag(q_diag)
         self.t += dt
@@ -177,7 +225,8 @@ class NavigationEkf:
         self.rotate(dx[6:9])
         self.bg += dx[9:12]
         self.ba += dx[12:15]
-        I_KH = np.eye(15) - K @ H
+        self.wind += dx[WIND]
+        I_KH = np.eye(N_STATES) - K @ H
         self.P = I_KH @ self.P @ I_KH.T + K @ Rm @ K.T  # Joseph form: stays symmetric positive
         if self.on_correction is not None:
             self.on_correction(dx)
@@ -193,7 +242,7 @@ class NavigationEkf:
         innovation (measurement − the state at its sample time) and covariance Rm [m²]."""
         if not self.aligned:
             return False
-        H = np.zeros((len(rows), 15))
+        H = np.zeros((len(rows), N_STATES))
         H[np.arange(len(rows)), rows] = 1.0
         return self._update(H, innovation, Rm, gate)
 
@@ -201,7 +250,7 @@ class NavigationEkf:
         """Heading measurement (e.g. the external source's yaw in map): innovation [rad], variance [rad²]."""
         if not self.aligned:
             return False
-        H = np.zeros((1, 15))
+        H = np.zeros((1, N_STATES))
         H[0, 8] = 1.0
         ok = self._update(H, np.array([innovation]), np.array([[variance]]), gate)
         if ok:
@@ -263,7 +312,7 @@ class NavigationEkf:
         (PX4's EKF does the same), restart the velocity from rest with a wide uncertainty so the
         next fixes re-estimate it, and drop the stale position/velocity correlations."""
         self.resets += 1
-        dx = np.zeros(15)
+        dx = np.zeros(N_STATES)
         dx[0:3], dx[3:6] = z - self.p, -self.v
         self.p = z.copy()
         self.v[:] = 0.0
@@ -280,7 +329,7 @@ class NavigationEkf:
         bias observable, so a vehicle that landed blind does not diverge while it waits."""
         if not self.aligned:
             return False
-        H = np.zeros((3, 15))
+        H = np.zeros((3, N_STATES))
         H[:, 3:6] = np.eye(3)
         return self._update(H, -self.v, np.eye(3) * self.cfg.zero_velocity_sigma**2)
 
@@ -296,9 +345,35 @@ class NavigationEkf:
         sigma = self.cfg.unaided_velocity_sigma
         if not self.aligned or sigma <= 0.0:
             return False
-        H = np.zeros((2, 15))
+        H = np.zeros((2, N_STATES))
         H[0, 3] = H[1, 4] = 1.0
         return self._update(H, -self.v[0:2], np.eye(2) * sigma**2)
+
+    def update_drag(self, accel: Vec) -> bool:
+        """Drag fusion: `accel` is the mean accelerometer reading [m/s², body FLU] over ~0.1 s of flight.
+        Model: its horizontal body components are the drag R⁻¹(−D (v − w)) of the air-relative velocity
+        (D = diag(k_h, k_h, k_v), w the horizontal wind, no vertical wind) plus b_a — a multirotor's thrust
+        is along body z. Gated at 5σ (a gust the wind state has not followed, a collision): rejected,
+        counted, not fused. False when not fused (drag fusion off, not aligned, or gated out)."""
+        cfg = self.cfg
+        if not self.aligned or cfg.drag_horizontal_per_s <= 0.0:
+            return False
+        drag = np.diag([cfg.drag_horizontal_per_s, cfg.drag_horizontal_per_s, cfg.drag_vertical_per_s])
+        Rt = rotation_matrix(self.q).T
+        u = drag @ (self.v - np.array([self.wind[0], self.wind[1], 0.0]))  # drag deceleration, world axes
+        predicted = -(Rt @ u)[0:2] + self.ba[0:2]
+        H = np.zeros((2, N_STATES))
+        H[:, 3:6] = -(Rt @ drag)[0:2]
+        H[:, 6:9] = -(Rt @ _skew(u))[0:2]  # R_true = (I + [δθ]×) R
+        H[0, 12] = H[1, 13] = 1.0
+        H[:, WIND] = (Rt @ drag)[0:2, 0:2]
+        innovation = np.asarray(accel, dtype=float)[0:2] - predicted
+        ok = self._update(H, innovation, np.eye(2) * cfg.drag_noise**2, 5.0)
+        if ok:
+            self.last_drag = self.t
+        else:
+            self.rejected["drag"] += 1
+        return ok
 
     def update_baro(self, pressure: float) -> bool:
         altitude = altitude_at_pressure(pressure)
@@ -307,7 +382,7 @@ class NavigationEkf:
             return False
         if not self.aligned or self.baro_offset is None:
             return False
-        H = np.zeros((1, 15))
+        H = np.zeros((1, N_STATES))
         H[0, 2] = 1.0
         ok = self._update(H, np.array([altitude - self.baro_offset - self.p[2]]), np.array([[self.cfg.baro_noise**2]]), 5.0)
         if not ok:
@@ -320,7 +395,7 @@ class NavigationEkf:
         roll, pitch, yaw = quat.to_euler(self.q)
         measured = self._heading_from_mag(np.asarray(field), roll, pitch)
         innovation = math.atan2(math.sin(measured - yaw), math.cos(measured - yaw))
-        H = np.zeros((1, 15))
+        H = np.zeros((1, N_STATES))
         H[0, 8] = 1.0  # world-frame yaw error
         ok = self._update(H, np.array([innovation]), np.array([[self.cfg.mag_heading_noise**2]]), 5.0)
         if ok:
@@ -334,6 +409,15 @@ class NavigationEkf:
     def position_valid(self) -> bool:
         recent = self.t - self.last_position < self.cfg.position_valid_s or self.t < self.valid_until
         return self.aligned and recent and float(np.trace(self.P[0:3, 0:3])) < 27.0
+
+    @property
+    def velocity_valid(self) -> bool:
+        """The horizontal velocity is trustworthy: with the position, or — dead reckoning — while drag fusion
+        measures it (a drag sample fused within position_valid_s) and its σ is below VELOCITY_VALID_SIGMA."""
+        if self.position_valid:
+            return True
+        drag_recent = self.t - self.last_drag < self.cfg.position_valid_s
+        return self.aligned and drag_recent and max(self.P[3, 3], self.P[4, 4]) < VELOCITY_VALID_SIGMA**2
 
     @property
     def heading_valid(self) -> bool:

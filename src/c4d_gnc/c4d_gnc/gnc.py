@@ -47,6 +47,7 @@ class StateSample:
     angular_velocity: Vec
     valid_position: bool = True
     valid_attitude: bool = True
+    valid_velocity: bool = True  # horizontal velocity (valid with the position, or dead reckoning on drag fusion)
     terrain_distance: float = NAN  # [m] downward range to the ground, NaN when unknown
     origin: Vec | None = None  # (latitude [deg], longitude [deg], altitude [m]) of home, None until set
 
@@ -391,7 +392,7 @@ class GncCore:
         self.landing_velocity = tuple(f + alpha * (v - f) for f, v in zip(self.landing_velocity, s.velocity, strict=True))
         vx, vy, vz = self.landing_velocity
         near_ground = math.isfinite(s.terrain_distance) and s.terrain_distance < 0.2
-        still = abs(vz) < 0.2 and (math.hypot(vx, vy) < 0.5 or not s.valid_position)  # drifting xy says nothing
+        still = abs(vz) < 0.2 and (math.hypot(vx, vy) < 0.5 or not s.valid_velocity)  # drifting xy says nothing
         if (near_ground or still) and self.thrust < 0.75 * hover_thrust:
             self.landed_timer += dt
         else:
@@ -430,9 +431,12 @@ class GncCore:
                 target = sp.position if sp.level == Level.POSITION and math.isfinite(sp.position[0]) and \
                     math.isfinite(sp.position[1]) else None
                 v_sp = list(self._shield(s, (v_sp[0], v_sp[1], v_sp[2]), target, dt))
+            if not s.valid_position and s.valid_velocity:  # no position to hold: brake and hold still horizontally
+                for k in range(2):  # (a velocity setpoint is still followed)
+                    v_sp[k] = velocity_ff[k] if sp.level == Level.VELOCITY and math.isfinite(velocity_ff[k]) else 0.0
             accel = self.translation.acceleration_setpoint(s.velocity, tuple(v_sp), sp.acceleration, dt)
-            if not s.valid_position:  # dead reckoning drifts: stay level horizontally, keep the baro-held height
-                accel = (0.0, 0.0, accel[2])
+            if not s.valid_position and not s.valid_velocity:  # inertial dead reckoning drifts: stay level
+                accel = (0.0, 0.0, accel[2])  # horizontally, keep the baro-held height
         else:
             accel = tuple(a if math.isfinite(a) else 0.0 for a in sp.acceleration)
             if shield and self.barrier is not None:  # acceleration level: shield the velocity it leads to in tau

@@ -2,7 +2,8 @@
 
 What: `navigation_table(cfg)` lists every noise, gate and timeout of the EKF (c4d_gnc.ekf.EkfConfig:
 IMU noises, bias random walks, GNSS gate, baro / magnetometer noise, validity and reset times,
-zero-velocity and unaided-velocity pseudo-measurement sigmas) as scalar parameters `ekf.<field>`
+zero-velocity and unaided-velocity pseudo-measurement sigmas, drag fusion's
+coefficients and noise, the wind's random walk) as scalar parameters `ekf.<field>`
 in the field's own unit (radians for the heading noise, as PX4's EKF2_HEAD_NOISE), with ranges and
 `cfg`'s values as defaults; `ekf_with(cfg, values)` is the frozen EkfConfig those values describe
 (dataclasses.replace: the navigation node swaps `ekf.cfg` whole, between two IMU samples).
@@ -38,6 +39,10 @@ FIELDS: dict[str, tuple[str, float, float, str]] = {
     "unaided_velocity_sigma": ("m/s", 0.0, 100.0,
                                "horizontal zero-velocity pseudo-measurement 1σ in flight without aiding (0 = off)"),
     "heading_valid_s": ("s", 0.05, 600.0, "a magnetometer heading younger than this keeps the heading valid"),
+    "drag_horizontal_per_s": ("1/s", 0.0, 10.0, "horizontal linear drag per unit mass (drag fusion; 0 = off)"),
+    "drag_vertical_per_s": ("1/s", 0.0, 10.0, "vertical linear drag per unit mass (drag fusion)"),
+    "drag_noise": ("m/s^2", 1e-4, 10.0, "drag fusion: 1σ of the 0.1 s mean horizontal specific force"),
+    "wind_walk": ("m/s/sqrt(s)", 0.0, 10.0, "horizontal wind random walk (drag fusion)"),
 }
 
 

@@ -20,12 +20,13 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from c4d_common.geodesy import GeoOrigin, altitude_at_pressure
 
-from .ekf import NavigationEkf
+from .ekf import N_STATES, NavigationEkf
 from .external_pose import ExternalConfig, ExternalSample, ExternalValidator, FrameAlignment, Rejection, wrap
 from .gnss_integrity import FixCheck, GnssIntegrityMonitor, IntegrityState, Verdict
 from .source_selection import BARO, EXTERNAL, GNSS, NONE, RANGE, SelectionConfig, SourceSelector
@@ -39,6 +40,7 @@ RANGE_TIMEOUT_S = 0.5  # a range reading older than this gives no terrain distan
 DEFAULT_SIGMA_H_M, DEFAULT_SIGMA_V_M = 1.0, 2.0  # GNSS accuracy when a fix reports no covariance
 TICK_S = 0.2  # integrity monitor tick and source-switch evaluation period (5 Hz, IMU clock)
 HORIZONTAL, VERTICAL = np.array([0, 1]), np.array([2])
+UNDO_VELOCITY_SIGMA = 0.5  # [m/s] added to the horizontal velocity σ by a SPOOFED undo (_undo_since)
 JOURNAL_S = 60.0  # [s] GNSS corrections kept for an undo
 HOME_GYRO_BIAS_SIGMA = 0.004  # [rad/s] roll/pitch gyro-bias σ below which home may be set (_settled)
 HOME_SETTLE_MAX_S = 10.0  # [s] ... or this long after alignment, converged or not
@@ -75,6 +77,15 @@ class NavigationConfig:
     @property
     def gnss_used(self) -> bool:
         return GNSS in (self.horizontal_primary, self.horizontal_secondary, self.height_primary, self.height_secondary)
+
+
+class GnssCorrection(NamedTuple):
+    """One fused GNSS fix's correction, kept JOURNAL_S for an undo (a SPOOFED verdict)."""
+
+    fix_t: float  # sample time of the fix [s]
+    applied_t: float  # filter time it was applied at [s]
+    dx: np.ndarray  # the error-state correction (N_STATES)
+    wind_before: np.ndarray  # [m/s] the wind estimate before it
 
 
 @dataclass
@@ -135,7 +146,8 @@ class NavigationFilter:
         self._external_consistent = False
         self._external_arrivals: deque[float] = deque(maxlen=1000)
         self._external_latency = math.nan
-        self._journal: deque[tuple[float, float, np.ndarray]] = deque()  # (fix t, applied at, δx (15))
+        self._journal: deque[GnssCorrection] = deque()  # the GNSS corrections of the last JOURNAL_S
+        self._accel_sum, self._accel_n = np.zeros(3), 0  # accelerometer readings since the last drag update
         self._last_dx: np.ndarray | None = None
         self._tick_t = -math.inf
         self._aligned_t = math.nan  # IMU time home collection first found the filter aligned
@@ -158,10 +170,16 @@ class NavigationFilter:
                 self.monitor.inertial_gap()  # the shadow misses the gap's displacement
             return False  # first sample after a gap: no integration over an unknown interval
         dt = t - last
+        ekf.horizontal_aiding = self.horizontal.fusing(t) != NONE
         ekf.predict(gyro, accel, dt)
         self._push(t)
         self.imu_count += 1
+        self._accel_sum += accel
+        self._accel_n += 1
         if self.imu_count % ZUPT_EVERY == 0:
+            if self.status_known and not self.on_ground:  # in flight: the mean specific force measures the drag
+                ekf.update_drag(self._accel_sum / self._accel_n)  # (nothing is fused when drag fusion is off)
+            self._accel_sum[:], self._accel_n = 0.0, 0
             if self.on_ground:
                 ekf.update_zero_velocity()
             elif self.station_keeping and self.initialised and self.horizontal.fusing(t) == NONE:
@@ -183,9 +201,14 @@ class NavigationFilter:
         self._on_ground, self.status_known = bool(value), True
 
     def __setstate__(self, state: dict) -> None:
-        """Snapshots journaled before on_ground became a property (resim of older flights)."""
+        """Snapshots journaled before on_ground became a property, or before drag fusion (resim of older flights)."""
         if "on_ground" in state:
             state["_on_ground"], state["status_known"] = state.pop("on_ground"), True
+        state["_journal"] = deque(c if isinstance(c, GnssCorrection) else  # (fix t, applied t, δx (15))
+                                  GnssCorrection(c[0], c[1], np.pad(c[2], (0, N_STATES - len(c[2]))), np.zeros(2))
+                                  for c in state.get("_journal", ()))
+        state.setdefault("_accel_sum", np.zeros(3))
+        state.setdefault("_accel_n", 0)
         self.__dict__.update(state)
 
     def _settled(self) -> bool:
@@ -326,10 +349,11 @@ class NavigationFilter:
             self.horizontal.sample(GNSS, stamp)
         if self.horizontal.active == GNSS:
             self._last_dx = None
+            wind_before = ekf.wind.copy()
             if self._fuse(self.horizontal, GNSS, HORIZONTAL, z[0:2], row, Rh, gate, stamp):
                 ekf.last_gps = ekf.t
                 if self._last_dx is not None:
-                    self._journal.append((stamp, ekf.t, self._last_dx.copy()))
+                    self._journal.append(GnssCorrection(stamp, ekf.t, self._last_dx.copy(), wind_before))
             elif ekf.t - ekf.last_gps > ekf.cfg.gps_reset_after_s and not self._alternative(self.horizontal, stamp):
                 # back after an outage, dead reckoning beyond the gate and nothing else to trust: reset
                 ekf.reset_position(np.array([z[0], z[1], ekf.p[2]]), np.diag([sigma_h**2, sigma_h**2, ekf.P[2, 2]]))
@@ -385,18 +409,25 @@ class NavigationFilter:
 
     def _undo_since(self, onset: float) -> None:
         """Remove the GNSS corrections fused from fixes sampled at or after `onset`: each position
-        correction and what its velocity correction integrated to since it was applied."""
+        correction and what its velocity correction integrated to since it was applied; the wind goes back
+        to what it was before the first of them (drag fusion moved it along with the pulled velocity)."""
         ekf = self.ekf
-        dp, dv, rest = np.zeros(3), np.zeros(3), np.zeros(9)
-        kept: deque[tuple[float, float, np.ndarray]] = deque()
-        for t_fix, applied, dx in self._journal:
-            if t_fix >= onset:
-                dp += dx[0:3] + dx[3:6] * (ekf.t - applied)
-                dv += dx[3:6]
-                rest += dx[6:15]
+        dp, dv, rest = np.zeros(3), np.zeros(3), np.zeros(N_STATES - 6)
+        kept: deque[GnssCorrection] = deque()
+        wind_before: np.ndarray | None = None
+        for c in self._journal:
+            if c.fix_t >= onset:
+                if wind_before is None:
+                    wind_before = c.wind_before
+                dp += c.dx[0:3] + c.dx[3:6] * (ekf.t - c.applied_t)
+                dv += c.dx[3:6]
+                rest += c.dx[6:]
             else:
-                kept.append((t_fix, applied, dx))
+                kept.append(c)
         self._journal = kept
+        if wind_before is None:  # nothing fused since the onset
+            self.gnss_undone_m = 0.0
+            return
         ekf.p -= dp
         ekf.v -= dv
         # a drift the fixes pulled in is also explained as tilt and accelerometer bias: left in, dead
@@ -404,6 +435,11 @@ class NavigationFilter:
         ekf.rotate(-rest[0:3])
         ekf.bg -= rest[3:6]
         ekf.ba -= rest[6:9]
+        ekf.wind = wind_before.copy()
+        # the undo is linear and leaves some velocity error (0.2-0.35 m/s in the closed-loop runs): say so,
+        # so that drag fusion corrects the velocity rather than the biases
+        ekf.P[3, 3] += UNDO_VELOCITY_SIGMA**2
+        ekf.P[4, 4] += UNDO_VELOCITY_SIGMA**2
         self.history.shift(-dp, -dv)
         self.gnss_undone_m = float(np.hypot(dp[0], dp[1]))
 

@@ -32,6 +32,7 @@ import pickle
 import struct
 import sys
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TransformStamped, Vector3
@@ -40,6 +41,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, Imu, MagneticField, NavSatFix, NavSatStatus, Range
 from std_msgs.msg import UInt8MultiArray
 
+from c4d_common.airframe import AirframeError, airframe_by_ref
 from c4d_common.tunable import TunableError, VehicleStore
 from c4d_interfaces.msg import EstimatorStatus, GnssIntegrity, VehicleState, VehicleStatus
 from c4d_ros import cdr, gc_policy, lifecycle, node_runtime
@@ -65,7 +67,7 @@ from c4d_ros.params import ParameterError, Spec, declare_all
 from c4d_ros.stamps import stamp_to_s
 
 from . import journal as jr
-from .ekf import EkfConfig, NavigationEkf, rotation_matrix
+from .ekf import EkfConfig, NavigationEkf, drag_config, rotation_matrix
 from .external_pose import ExternalConfig, ExternalSample, Rejection
 from .gnss_integrity import IntegrityState
 from .live_navigation import ekf_with, navigation_table
@@ -121,6 +123,8 @@ PARAMS = {
                                   "corrections since the onset, or only report the verdict", read_only=True),
     "dead_reckoning_valid_s": Spec(3.0, "position kept valid this long after a SPOOFED GNSS cut-off [s]", 0.0, 120.0,
                                    read_only=True),
+    "airframe": Spec("quad_x", "airframe whose drag per unit mass is drag fusion's default (ekf.drag_*) "
+                     "[bundled name or YAML path]", read_only=True),
     "vehicle": Spec("", "vehicle whose changed ekf.* parameters persist in $XDG_DATA_HOME/c4d/vehicles/<vehicle>/"
                     "navigation.yaml and are restored at start; empty: not persisted [name]", read_only=True),
 }
@@ -208,9 +212,9 @@ class NavigationNode:
 
     def __init__(self, node, odometry_rate_hz: float, mag_declination_deg: float,
                  config: NavigationConfig | None = None, gnss_input: str = "perception",
-                 live: LiveParameters | None = None) -> None:
+                 live: LiveParameters | None = None, ekf_base: EkfConfig | None = None) -> None:
         self.node, self.live = node, live
-        ekf_cfg = EkfConfig(mag_declination=math.radians(mag_declination_deg))
+        ekf_cfg = replace(ekf_base or EkfConfig(), mag_declination=math.radians(mag_declination_deg))
         self.filter = NavigationFilter(NavigationEkf(ekf_with(ekf_cfg, live.values) if live else ekf_cfg), config)
         self.ekf = self.filter.ekf
         self.gnss_external = gnss_input == "external"
@@ -417,12 +421,13 @@ def component(rclpy, host: Host) -> lifecycle.ManagedComponent:
 
     def build() -> SpunNode:  # configure (c4d_ros.lifecycle): the EKF configuration loaded and checked, entities created
         try:
+            ekf_base = drag_config(airframe_by_ref(params["airframe"]))
             store = VehicleStore.of(params["vehicle"], NAME) if params["vehicle"] else None
-            live = LiveParameters(node, navigation_table(), store, node.get_logger().info)
-        except (TunableError, ParameterError) as exc:
-            raise ComponentError(str(exc)) from None
+            live = LiveParameters(node, navigation_table(ekf_base), store, node.get_logger().info)
+        except (TunableError, ParameterError, AirframeError) as exc:
+            raise ComponentError(f"parameter 'airframe': {exc}" if isinstance(exc, AirframeError) else str(exc)) from None
         owner = NavigationNode(node, params["odometry_rate_hz"], params["mag_declination_deg"], navigation_config(params),
-                               params["gnss_input"], live)
+                               params["gnss_input"], live, ekf_base)
         owner.params = {name: (value, PARAMS[name].low, PARAMS[name].high) for name, value in params.items()}
         return SpunNode(NAME, node, bool(params["events_executor"]), params["rt_priority"], owner)
     return lifecycle.ManagedComponent(NAME, node, build, events_executor=bool(params["events_executor"]),

@@ -32,6 +32,7 @@ def state_from_msg(msg: VehicleState) -> StateSample:
         angular_velocity=(w.x, w.y, w.z),
         valid_position=bool(msg.valid & VehicleState.VALID_POSITION_XY) and bool(msg.valid & VehicleState.VALID_POSITION_Z),
         valid_attitude=bool(msg.valid & VehicleState.VALID_ATTITUDE),
+        valid_velocity=bool(msg.valid & VehicleState.VALID_VELOCITY_XY),
         terrain_distance=msg.terrain_distance if msg.valid & VehicleState.VALID_TERRAIN_DISTANCE else math.nan,
         origin=(msg.origin.latitude, msg.origin.longitude, msg.origin.altitude)
         if msg.valid & VehicleState.VALID_ORIGIN else None,

@@ -18,8 +18,8 @@ ALWAYS_VALID = (VehicleState.VALID_ATTITUDE | VehicleState.VALID_ANGULAR_VELOCIT
                 | VehicleState.VALID_ANGULAR_ACCELERATION)
 MAP_FRAME, BASE_LINK = cdr.text("map"), cdr.text("base_link")
 STATE_FRAMES = (MAP_FRAME[0], BASE_LINK[0])  # the string lengths of navigation/state's CDR layout
-POSITION_VALID = (VehicleState.VALID_POSITION_XY | VehicleState.VALID_POSITION_Z | VehicleState.VALID_VELOCITY_XY
-                  | VehicleState.VALID_VELOCITY_Z)
+VELOCITY_VALID = VehicleState.VALID_VELOCITY_XY | VehicleState.VALID_VELOCITY_Z
+POSITION_VALID = VehicleState.VALID_POSITION_XY | VehicleState.VALID_POSITION_Z | VELOCITY_VALID
 
 
 def state_cdr(filt: NavigationFilter, sec: int, nanosec: int, t: float) -> bytes:
@@ -30,6 +30,8 @@ def state_cdr(filt: NavigationFilter, sec: int, nanosec: int, t: float) -> bytes
         valid |= VehicleState.VALID_HEADING
     if ekf.position_valid:
         valid |= POSITION_VALID
+    elif ekf.velocity_valid:  # dead reckoning on drag fusion: the velocity without the position
+        valid |= VELOCITY_VALID
     terrain = filt.terrain_distance(t)
     if not math.isnan(terrain):
         valid |= VehicleState.VALID_TERRAIN_DISTANCE

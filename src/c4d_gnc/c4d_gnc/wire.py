@@ -18,7 +18,7 @@ from c4d_ros import cdr
 from .gnc import Outputs, StateSample
 
 BASE_LINK = cdr.text("base_link")
-_XY, _Z = VehicleState.VALID_POSITION_XY, VehicleState.VALID_POSITION_Z
+_XY, _Z, _VXY = VehicleState.VALID_POSITION_XY, VehicleState.VALID_POSITION_Z, VehicleState.VALID_VELOCITY_XY
 _ATT, _TERRAIN = VehicleState.VALID_ATTITUDE, VehicleState.VALID_TERRAIN_DISTANCE
 _ORIGIN = VehicleState.VALID_ORIGIN
 
@@ -38,6 +38,7 @@ def state_from_cdr(raw: bytes) -> StateSample:
     return StateSample(
         stamp=v[1] + v[2] * 1e-9, position=v[8:11], velocity=v[11:14], orientation=(v[20], v[17], v[18], v[19]),
         angular_velocity=v[21:24], valid_position=bool(valid & _XY) and bool(valid & _Z), valid_attitude=bool(valid & _ATT),
+        valid_velocity=bool(valid & _VXY),
         terrain_distance=v[60] if valid & _TERRAIN else math.nan, origin=v[61:64] if valid & _ORIGIN else None)
 
 

@@ -19,7 +19,7 @@ def core():
 def feed(core, now=10.0, valid_position=True):
     core.inputs.now = now
     core.inputs.state = StateSample(now, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
-                                    valid_position=valid_position)
+                                    valid_position=valid_position, valid_velocity=valid_position)
     core.inputs.gyro, core.inputs.gyro_stamp = (0.0, 0.0, 0.0), now
 
 

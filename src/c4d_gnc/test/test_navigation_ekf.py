@@ -63,7 +63,7 @@ def test_estimates_position_attitude_and_biases(make_loop):
     assert horizontal <= 0.3 and attitude <= 2.0, (horizontal, attitude)
     assert np.allclose(f.ekf.bg, f.sensors.gyro_bias, atol=0.003)
     assert f.ekf.position_valid and f.ekf.heading_valid
-    assert f.ekf.rejected == {"gps": 0, "baro": 0, "mag": 0}
+    assert f.ekf.rejected == {"gps": 0, "baro": 0, "mag": 0, "drag": 0}
 
 
 def test_survives_gps_and_mag_loss_with_flags(make_loop):
