@@ -8,6 +8,8 @@ sources or integrity) and after issue 19, in-process, the real classes, interlea
   external  one accepted external pose, 30 ms old, fused at its sample time (after only)
   flood     one external sample dropped by the rate limit (what each extra sample of a 1 kHz flood costs)
   replay    what a rewind/replay of 30 ms at 500 Hz would cost instead (15 predictions, measured)
+  drag      one drag-fusion update (10 Hz in flight; part of every 50th imu sample)
+The "after" filters are the navigation node's default: drag fusion on with quad_x's coefficients (17 states).
 Prints medians and p99 in µs, the after/before ratio, the CPU share at the sample rate, and the
 platform-stall probe's worst oversleep (a stall there is the machine's, not c4d's).
 
@@ -31,8 +33,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "test" / "support"))
 from stall_probe import StallProbe, worst_line  # noqa: E402
 
+from c4d_common.airframe import default_airframe_path, load_airframe  # noqa: E402
 from c4d_common.geodesy import GeoOrigin  # noqa: E402
-from c4d_gnc.ekf import NavigationEkf  # noqa: E402
+from c4d_gnc.ekf import NavigationEkf, drag_config  # noqa: E402
 from c4d_gnc.external_pose import ExternalSample  # noqa: E402
 from c4d_gnc.navigation_filter import NavigationConfig, NavigationFilter  # noqa: E402
 from c4d_gnc.source_selection import EXTERNAL, GNSS, NONE  # noqa: E402
@@ -92,7 +95,7 @@ def timed(call) -> float:
 
 def measure(rigs: dict[str, Rig], samples: int, rounds: int = 20) -> dict[str, list[float]]:
     out: dict[str, list[float]] = {k: [] for k in ("imu before", "imu after", "gnss before", "gnss after", "external",
-                                                   "flood", "replay")}
+                                                   "flood", "replay", "drag")}
     per_round = max(1, samples // rounds)
     old, new, ext = rigs["before"], rigs["after"], rigs["external"]
     for _ in range(rounds):
@@ -113,6 +116,7 @@ def measure(rigs: dict[str, Rig], samples: int, rounds: int = 20) -> dict[str, l
                 out["flood"].append(timed(lambda t=t, j=j: ext.f.validator.rate_limited(t + 0.001 * j)))
         ekf = ext.f.ekf
         for _ in range(max(1, per_round // 50)):
+            out["drag"].append(timed(lambda ekf=new.f.ekf: ekf.update_drag(G)))
             out["replay"].append(timed(lambda ekf=ekf: [ekf.predict(STILL, G, DT) for _ in range(15)]))
     return out
 
@@ -127,10 +131,11 @@ def main(argv: list[str] | None = None) -> int:
         old_ekf, old_filter = before_modules(Path(tmp))
         probe = StallProbe()
         try:
+            node_default = drag_config(load_airframe(default_airframe_path("quad_x")))
             rigs = {"before": Rig(old_filter.NavigationFilter(old_ekf.NavigationEkf())),
-                    "after": Rig(NavigationFilter(NavigationEkf(), NavigationConfig(horizontal_primary=GNSS,
-                                                                                    horizontal_secondary=NONE))),
-                    "external": Rig(NavigationFilter(NavigationEkf(), NavigationConfig(
+                    "after": Rig(NavigationFilter(NavigationEkf(node_default), NavigationConfig(
+                        horizontal_primary=GNSS, horizontal_secondary=NONE))),
+                    "external": Rig(NavigationFilter(NavigationEkf(node_default), NavigationConfig(
                         horizontal_primary=EXTERNAL, horizontal_secondary=NONE, external_alignment="configured",
                         origin=(HOME.latitude, HOME.longitude, HOME.altitude))))}
             measure(rigs, 2000, rounds=2)  # warm-up
@@ -138,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             stalls = probe.stop()
     med = {k: statistics.median(v) for k, v in samples.items()}
-    rates = {"imu": 500.0, "gnss": 10.0, "external": 100.0, "flood": 750.0, "replay": 100.0}
+    rates = {"imu": 500.0, "gnss": 10.0, "external": 100.0, "flood": 750.0, "replay": 100.0, "drag": 10.0}
     print(f"navigation filter cost per sample ({args.samples} IMU samples per configuration, 20 interleaved rounds)")
     print(f"{'what':<13} {'n':>6} {'median µs':>10} {'p99 µs':>9} {'after/before':>13} {'CPU at rate':>16}")
     for key, values in samples.items():

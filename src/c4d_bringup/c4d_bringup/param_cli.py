@@ -22,7 +22,6 @@ from c4d_common.airframe import AirframeError, airframe_by_ref
 from c4d_common.share import share_file
 from c4d_common.tunable import TunableError, TunableTable, VehicleStore
 from c4d_gnc.core_config import CoreConfigError, load_core_config
-from c4d_gnc.ekf import drag_config
 from c4d_gnc.live_gains import core_table
 from c4d_gnc.live_navigation import navigation_table
 from c4d_health.live_policy import policy_table
@@ -44,7 +43,7 @@ def _table_and_store(config: SystemConfig, vehicle: str | None, node: str = "cor
         return str(params.get(key) or "").replace("${config_dir}", str(config.path.parent))
     try:
         if node == "navigation":
-            table = navigation_table(drag_config(airframe_by_ref(path("airframe") or "quad_x")))
+            table = navigation_table(airframe=airframe_by_ref(path("airframe") or "quad_x"))
         elif node == "health":
             table = policy_table(FailsafePolicy.from_yaml(path("policy_file") or share_file("c4d_health", "config",
                                                                                            "failsafe.yaml")))

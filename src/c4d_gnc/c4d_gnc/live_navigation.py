@@ -19,9 +19,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import replace
 
+from c4d_common.airframe import Airframe
 from c4d_common.tunable import Tunable, TunableTable
 
-from .ekf import EkfConfig
+from .ekf import EkfConfig, drag_config
 
 PREFIX = "ekf."
 # field: (unit, low, high, description)
@@ -46,9 +47,12 @@ FIELDS: dict[str, tuple[str, float, float, str]] = {
 }
 
 
-def navigation_table(cfg: EkfConfig | None = None) -> TunableTable:
-    """The navigation node's tunables with `cfg`'s values (EkfConfig() when None) as defaults."""
+def navigation_table(cfg: EkfConfig | None = None, airframe: Airframe | None = None) -> TunableTable:
+    """The navigation node's tunables with `cfg`'s values (EkfConfig() when None) as defaults; with
+    `airframe`, its drag as drag fusion's coefficients (the node's defaults, c4d_gnc.ekf.drag_config)."""
     cfg = cfg or EkfConfig()
+    if airframe is not None:
+        cfg = drag_config(airframe, cfg)
     return TunableTable(Tunable(PREFIX + f, float(getattr(cfg, f)), unit, low, high, what)
                         for f, (unit, low, high, what) in FIELDS.items())
 
