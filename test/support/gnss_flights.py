@@ -6,9 +6,10 @@ the whole graph cannot afford; the trajectory does not need a controller, only c
 kinematics. A flight: on the ground (alignment, home from the first fixes), a climb, then
 lawnmower legs at 3-5 m/s joined by semicircular turns (the heading follows the track), one leg
 climbing 5 m, and a stop. Position, velocity, acceleration (C2: quintic blends), the attitude of
-a multirotor (thrust along a + g, yaw on the track) and its body rates feed c4d_sim.sensors
-(IMU, GNSS with its faults, baro, magnetometer; seeded), which feed the real NavigationEkf
-(zero-velocity updates on the ground, as NavigationFilter) and the monitor. The FixCheck is built
+a multirotor (thrust along a + g + the linear drag per unit mass × v: quad_x's, no wind; yaw on the
+track) and its body rates feed c4d_sim.sensors (IMU, GNSS with its faults, baro, magnetometer; seeded),
+which feed the real NavigationEkf (zero-velocity updates on the ground, drag fusion in flight, as
+NavigationFilter) and the monitor. The FixCheck is built
 here: the estimate before each fix, and an IMU-only shadow integrated from the EKF's
 `accel_world` per IMU sample. A fix the monitor judges SPOOFED is not fused (the filter's undo of
 the fixes since the onset is not modelled). An external source, when enabled, is the truth plus
@@ -25,14 +26,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from c4d_common import quat
+from c4d_common.airframe import default_airframe_path, load_airframe
 from c4d_common.geodesy import GeoOrigin
-from c4d_gnc.ekf import NavigationEkf
+from c4d_gnc.ekf import EkfConfig, NavigationEkf, drag_config
 from c4d_gnc.gnss_integrity import FixCheck, GnssIntegrityMonitor, IntegrityConfig, IntegrityState, Verdict
 from c4d_sim.plant import PlantState
 from c4d_sim.sensors import SensorConfig, SensorSuite
 
 GRAVITY = 9.80665
 HOME = GeoOrigin(43.5629, 1.4815, 146.0)
+QUAD = load_airframe(default_airframe_path("quad_x"))
 GROUND_S, CLIMB_S, ALTITUDE_M = 6.0, 6.0, 20.0
 RAMP_S = 3.0  # [s] speed ramps at the start and the end of the survey
 ZUPT_EVERY = 50  # IMU samples between zero-velocity updates on the ground (NavigationFilter's)
@@ -185,13 +188,17 @@ class FlightResult:
 
 
 def fly(seed: int, duration_s: float = 100.0, fault: Fault | None = None, external: bool = False,
-        config: IntegrityConfig | None = None, sensors: SensorConfig | None = None) -> FlightResult:
-    """One seeded survey flight; the seed picks speed (3-5 m/s), heading and all sensor noise."""
+        config: IntegrityConfig | None = None, sensors: SensorConfig | None = None, drag: bool = True) -> FlightResult:
+    """One seeded survey flight; the seed picks speed (3-5 m/s), heading and all sensor noise. `drag`: the
+    vehicle has quad_x's linear drag (no wind) and the EKF fuses it, as the navigation node does by default;
+    False: a drag-free vehicle and filter."""
     rng = random.Random(seed)
     survey = Survey(speed=rng.uniform(3.0, 5.0), heading=rng.uniform(-math.pi, math.pi), duration_s=duration_s)
     cfg = sensors or SensorConfig()
     suite = SensorSuite(cfg, HOME, seed=seed)
-    ekf, monitor = NavigationEkf(), GnssIntegrityMonitor(config)
+    ekf_config = drag_config(QUAD) if drag else EkfConfig()
+    per_mass = np.array([ekf_config.drag_horizontal_per_s] * 2 + [ekf_config.drag_vertical_per_s])
+    ekf, monitor = NavigationEkf(ekf_config), GnssIntegrityMonitor(config)
     result = FlightResult(seed, survey, fault)
     dt = 1.0 / cfg.imu_rate_hz
     gps_every, baro_every, mag_every = (round(cfg.imu_rate_hz / r) for r in (cfg.gps_rate_hz, cfg.baro_rate_hz,
@@ -202,13 +209,14 @@ def fly(seed: int, duration_s: float = 100.0, fault: Fault | None = None, extern
     mag: tuple[float, float, float] | None = None
     n = round(duration_s / dt)
     upcoming = survey.kinematics(0.0)
-    q_next = attitude(upcoming[2], upcoming[3])
+    q_next = attitude(upcoming[2] + per_mass * upcoming[1], upcoming[3])
+    accel_sum, accel_n = np.zeros(3), 0
     ext_rng = random.Random(seed + 10_000)
     for k in range(n + 1):
         t = k * dt
         position, velocity, acceleration, yaw = upcoming
         upcoming = survey.kinematics(t + dt)
-        q, q_next = q_next, attitude(upcoming[2], upcoming[3])
+        q, q_next = q_next, attitude(upcoming[2] + per_mass * upcoming[1], upcoming[3])  # thrust also beats drag
         # body rate: the rotation from this sample's attitude to the next one's
         dq = quat.mul(quat.conj(q), q_next)
         sign = 1.0 if dq[0] >= 0 else -1.0
@@ -235,8 +243,14 @@ def fly(seed: int, duration_s: float = 100.0, fault: Fault | None = None, extern
                 if shadow_started:
                     shadow_p += shadow_v * dt + 0.5 * ekf.accel_world * dt * dt
                     shadow_v += ekf.accel_world * dt
-                if on_ground and k % ZUPT_EVERY == 0:
-                    ekf.update_zero_velocity()
+                accel_sum += imu.accel
+                accel_n += 1
+                if k % ZUPT_EVERY == 0:  # NavigationFilter's rule: zero velocity on the ground, drag in flight
+                    if on_ground:
+                        ekf.update_zero_velocity()
+                    else:
+                        ekf.update_drag(accel_sum / accel_n)
+                    accel_sum[:], accel_n = 0.0, 0
         if k % baro_every == 0:
             baro = suite.baro(state)
             if baro is not None:
