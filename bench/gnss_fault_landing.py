@@ -27,7 +27,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "test" / "support"))
 from navigation_loop import FaultFlight, fly_gnss_fault  # noqa: E402
-from stall_probe import StallProbe  # noqa: E402
+from stall_probe import StallProbe, worst_line  # noqa: E402
 
 
 def summary(flights: list[FaultFlight]) -> str:
@@ -58,9 +58,7 @@ def main() -> int:
                 print(f"{'  SPOOFED after [s], median':34} {flagged[False]:>21.2f}   {flagged[True]:>21.2f}")
     finally:
         stalls = probe.stop()
-    worst = max((s for _, s in stalls), default=0.0)
-    print(f"\nwall time {time.monotonic() - start:.0f} s; platform-stall probe: worst oversleep {worst:.2f} ms "
-          f"over {len(stalls)} s")
+    print(f"\nwall time {time.monotonic() - start:.0f} s; {worst_line(stalls)}")
     return 0
 
 
