@@ -221,8 +221,9 @@ def test_flood_is_rate_limited_and_the_core_keeps_its_deadlines(graph):
           f"core overruns {overruns_before} -> {world['stats'].overruns_total}, platform stall {stall_ms:.1f} ms")
     assert sent >= 0.5 * FLOOD_HZ * FLOOD_S, f"the child published only {sent} setpoints: not a flood"
     # DDS keeps only the newest sample for the gateway (state QoS, depth 1): it takes what its CPU share allows
-    # (~400/s on a shared 2-core machine), the rest is overwritten before it is read
-    assert received > 2 * MAX_RATE_HZ * FLOOD_S, f"the gateway took only {received} of {sent}: not flooded"
+    # (200-400/s on a shared 2-core machine), the rest is overwritten before it is read. Flooded = more arrived
+    # than the limit lets through (a fresh-clone CI run took 996 in 5 s: twice the limit was not always reached)
+    assert received > MAX_RATE_HZ * FLOOD_S, f"the gateway took only {received} of {sent}: not flooded"
     assert accepted <= MAX_RATE_HZ * (FLOOD_S + 1.0) + 2, accepted
     gap = max(gaps(times), default=math.inf)
     assert len(times) > 10 and gap < 0.5, f"the stream stalled {gap:.2f} s: it must stay live (OFFBOARD) under a flood"

@@ -7,12 +7,14 @@ flies on it. The whole graph flies them once per CI run; this loop flies them de
 (seeded), in ~2 s of wall time each, so that several seeds can be asserted on. The health node's
 policy is modelled by its timing (c4d_health/config/failsafe.yaml, gnss_spoofed: HOLD 1 s after
 the verdict, LAND 1 s later); the navigation node's rule "station keeping during a HOLD or LAND
-failsafe" (unaided-velocity pseudo-measurement) is applied as the node does.
+failsafe" (unaided-velocity pseudo-measurement) is applied as the node does. `hover_in_wind` measures
+what drag fusion costs with GNSS: the estimate's velocity error in steady wind and in gusts.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import yaml
@@ -27,6 +29,7 @@ from c4d_gnc.gnss_integrity import IntegrityState
 from c4d_gnc.navigation_filter import NavigationConfig, NavigationFilter
 from c4d_gnc.source_selection import GNSS, NONE
 from c4d_sim.sensors import SensorConfig, SensorSuite
+from c4d_sim.world import WindField
 
 HOME = GeoOrigin(43.5629, 1.4815, 146.0)
 POLICY_DELAY_S = 1.0  # failsafe.yaml gnss_spoofed: delay_s
@@ -45,21 +48,51 @@ class FaultFlight:
     velocity_valid_in_descent: bool = True  # the horizontal velocity stayed valid while the position was not
 
 
-def fly_gnss_fault(seed: int, fault: str, drag: bool = True, altitude: float = 5.0) -> FaultFlight:
-    """Take off, hover, then `fault` = "spoof" (a 1 m/s eastward drift of the fixes) or "jam" (no fix
-    any more); hold then land as the health policy does; the flight ends at disarm (at most 30 s)."""
+@dataclass
+class Rig:
+    """The loop, the sensors and the filter of one seeded flight; `jammed`: no fix reaches the filter;
+    `wind`: the air's velocity at the plant's time (None: still air)."""
+
+    loop: ClosedLoop
+    sensors: SensorSuite
+    nav: NavigationFilter
+    jammed: bool = False
+    wind: WindField | None = None
+
+    @property
+    def ekf(self) -> NavigationEkf:
+        return self.nav.ekf
+
+
+def airborne_rig(seed: int, drag: bool, altitude: float = 5.0, wind: WindField | None = None) -> Rig:
+    """Home set on the ground (8 s), then take-off to `altitude` and 12 s of hover on GNSS."""
     airframe = load_airframe(default_airframe_path("quad_x"))
     with open(default_config_path()) as f:
         loop = ClosedLoop(airframe, yaml.safe_load(f)["executive"], NO_NOISE, seed=seed)
-    sensors = SensorSuite(SensorConfig(), HOME, seed=seed)
-    ekf = NavigationEkf(drag_config(airframe) if drag else EkfConfig())
-    nav = NavigationFilter(ekf, NavigationConfig(horizontal_primary=GNSS, horizontal_secondary=NONE))
+    nav = NavigationFilter(NavigationEkf(drag_config(airframe) if drag else EkfConfig()),
+                           NavigationConfig(horizontal_primary=GNSS, horizontal_secondary=NONE))
+    rig = Rig(loop, SensorSuite(SensorConfig(), HOME, seed=seed), nav, wind=wind)
     nav.on_ground = True
-    dt, tick, jammed = loop.tick_s, [0], [False]
+    loop.input_hook = _sensing(rig)
+    loop.run(8.0)
+    if rig.ekf.origin is None:
+        raise RuntimeError("home was not set in 8 s")
+    nav.on_ground = False
+    loop.command(Request(Command.TAKEOFF, altitude=altitude))
+    loop.run(12.0)
+    return rig
 
-    def sense(now: float) -> None:  # each core input phase: sensors at their rates into the filter
+
+def _sensing(rig: Rig) -> Callable[[float], None]:
+    """The core's input-phase hook: the sensors at their rates into the filter, its estimate into the core."""
+    loop, sensors, nav, ekf = rig.loop, rig.sensors, rig.nav, rig.ekf
+    dt, tick = loop.tick_s, [0]
+
+    def sense(now: float) -> None:
         k, s = tick[0], loop.plant.state
         tick[0] += 1
+        if rig.wind is not None:
+            loop.plant.wind = rig.wind.at(s.t)
         imu = sensors.imu(s, dt)
         if imu is not None:
             nav.imu(s.t, imu.gyro, imu.accel)
@@ -69,7 +102,7 @@ def fly_gnss_fault(seed: int, fault: str, drag: bool = True, altitude: float = 5
                 nav.magnetometer(mag)
             if baro is not None:
                 nav.baro(baro[1], s.t)
-        if k % 50 == 25 and not jammed[0]:
+        if k % 50 == 25 and not rig.jammed:
             fix = sensors.gps(s, 0.1)
             if fix is not None:
                 nav.gnss(fix.latitude, fix.longitude, fix.altitude, fix.sigma_h**2, fix.sigma_v**2, s.t)
@@ -79,22 +112,22 @@ def fly_gnss_fault(seed: int, fault: str, drag: bool = True, altitude: float = 5
                                                  valid_position=ekf.position_valid,
                                                  valid_velocity=ekf.velocity_valid,
                                                  terrain_distance=old.terrain_distance)
+    return sense
 
-    loop.input_hook = sense
-    loop.run(8.0)
-    if ekf.origin is None:
-        raise RuntimeError("home was not set in 8 s")
-    nav.on_ground = False
-    loop.command(Request(Command.TAKEOFF, altitude=altitude))
-    loop.run(12.0)
+
+def fly_gnss_fault(seed: int, fault: str, drag: bool = True, altitude: float = 5.0) -> FaultFlight:
+    """Take off, hover, then `fault` = "spoof" (a 1 m/s eastward drift of the fixes) or "jam" (no fix
+    any more); hold then land as the health policy does; the flight ends at disarm (at most 30 s)."""
+    if fault not in ("spoof", "jam"):
+        raise ValueError(f"unknown fault {fault!r}: spoof or jam")
+    rig = airborne_rig(seed, drag, altitude)
+    loop, nav, ekf = rig.loop, rig.nav, rig.ekf
     start, t0, result = loop.plant.state.position, loop.t, FaultFlight()
     if fault == "spoof":
-        sensors.faults.gps_drift = (1.0, 0.0, 0.0)
-    elif fault == "jam":
-        jammed[0] = True
-        result.flagged_s = JAM_DETECTED_AFTER_S
+        rig.sensors.faults.gps_drift = (1.0, 0.0, 0.0)
     else:
-        raise ValueError(f"unknown fault {fault!r}: spoof or jam")
+        rig.jammed = True
+        result.flagged_s = JAM_DETECTED_AFTER_S
     while loop.t - t0 < 30.0:
         loop.run(0.1)
         elapsed = loop.t - t0
@@ -119,3 +152,27 @@ def fly_gnss_fault(seed: int, fault: str, drag: bool = True, altitude: float = 5
                 break
     result.touchdown_m = math.dist(loop.plant.state.position[:2], start[:2])
     return result
+
+
+@dataclass
+class HoverInWind:
+    """A hover on GNSS in wind: the estimate's horizontal velocity error against the plant's."""
+
+    velocity_rms: float  # [m/s]
+    velocity_max: float  # [m/s]
+    drag_rejected: int  # drag samples the gate refused
+    wind_error: float  # [m/s] |estimated − true| horizontal wind at the end (nan without drag fusion)
+
+
+def hover_in_wind(seed: int, drag: bool, wind: WindField, seconds: float = 30.0) -> HoverInWind:
+    """Hover at 5 m with GNSS in `wind` (from the take-off on); sample the estimate every 0.1 s."""
+    rig = airborne_rig(seed, drag, wind=wind)
+    errors = []
+    for _ in range(round(seconds / 0.1)):
+        rig.loop.run(0.1)
+        true_v = rig.loop.plant.state.velocity
+        errors.append(math.hypot(rig.ekf.v[0] - true_v[0], rig.ekf.v[1] - true_v[1]))
+    true_w = rig.wind.at(rig.loop.plant.state.t) if rig.wind is not None else (0.0, 0.0, 0.0)
+    wind_error = math.hypot(rig.ekf.wind[0] - true_w[0], rig.ekf.wind[1] - true_w[1]) if drag else math.nan
+    return HoverInWind(math.sqrt(sum(e * e for e in errors) / len(errors)), max(errors),
+                       rig.ekf.rejected["drag"], wind_error)
