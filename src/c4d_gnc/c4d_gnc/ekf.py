@@ -100,8 +100,8 @@ class NavigationEkf:
         self.bg = np.zeros(3)
         self.ba = np.zeros(3)
         # a horizontal position source is fused (NavigationFilter sets it): the wind is observable and walks;
-        # without one it is held as last learnt, so drag measures the ground velocity against it instead of
-        # the wind absorbing the dead-reckoning drift (PX4's EKF2 likewise stops learning the wind then)
+        # without one it is unobservable and held as last learnt, so drag measures the ground velocity against
+        # it (in the closed loop a walking wind absorbed the dead-reckoning drift and the velocity error grew)
         self.horizontal_aiding = True
         self.wind = np.zeros(2)  # [m/s] horizontal wind (ENU), learnt by drag fusion against the aiding
         self.P = np.diag([100.0] * 3 + [4.0] * 3 + [0.05] * 3 + [0.02**2] * 3 + [0.2**2] * 3
