@@ -16,6 +16,7 @@ then is logged and retried at the next check; a refusal (the core while armed) t
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 import time
@@ -27,6 +28,7 @@ from .system_modes import ACTIVE, PHASES, STATE_LABELS, ModeTable, Step, plan, r
 
 START_TIMEOUT_S = 60.0  # a node's lifecycle services must appear within this long of the manager's start
 CALL_TIMEOUT_S = 20.0  # one transition (the core's configure loads and checks its whole config)
+GET_STATE_RESEND_S = 2.0  # a get_state unanswered this long is sent again (idempotent; see _call)
 CHECK_PERIOD_S = 2.0  # every node's state is read this often (a restarted node comes back unconfigured)
 TRANSITION_IDS = {"configure": 1, "cleanup": 2, "activate": 3, "deactivate": 4}
 
@@ -70,22 +72,32 @@ class LifecycleManager:
         self.node.create_subscription(VehicleStatus, manifest.STATUS.name, on_status, manifest.STATUS.qos)
 
     # ------------------------------------------------------------------ service calls
-    def _call(self, client: Any, request: Any, timeout: float) -> Any:
+    def _call(self, client: Any, request: Any, timeout: float, resend_after: float = math.inf) -> Any:
+        """The response within `timeout`, or None. `resend_after`: an idempotent request is sent again when no
+        response came within that long — a server may answer before it has discovered the client's response
+        reader, and DDS then drops the answer ("failed to send response (timeout)" in its log; one CI bring-up
+        waited out its 60 s on such a lost get_state answer)."""
         end = time.monotonic() + timeout
         while not client.service_is_ready():
             if time.monotonic() >= end or self.stopping:
                 return None
             self.executor.spin_once(timeout_sec=0.05)
-        future = client.call_async(request)
-        while not future.done():
+        while True:
+            future = client.call_async(request)
+            resend = time.monotonic() + resend_after
+            while not future.done():
+                now = time.monotonic()
+                if now >= end or self.stopping or now >= resend:
+                    client.remove_pending_request(future)
+                    break
+                self.executor.spin_once(timeout_sec=0.05)
+            if future.done():
+                return future.result()
             if time.monotonic() >= end or self.stopping:
-                client.remove_pending_request(future)
                 return None
-            self.executor.spin_once(timeout_sec=0.05)
-        return future.result()
 
     def state(self, node: str, timeout: float = 2.0) -> int:
-        response = self._call(self.get[node], self.GetState.Request(), timeout)
+        response = self._call(self.get[node], self.GetState.Request(), timeout, resend_after=GET_STATE_RESEND_S)
         return 0 if response is None else int(response.current_state.id)
 
     def apply(self, step: Step) -> None:
