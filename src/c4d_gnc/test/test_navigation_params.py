@@ -20,6 +20,9 @@ CASES = [
                                   "'origin_altitude_m': all three or none (NaN)"),
     ("external_max_rate_hz:=5000.0",
      "navigation: error: parameter 'external_max_rate_hz': 5000.0 is outside [1, 1000]"),
+    ("airframe:=octo_q", "navigation: error: parameter 'airframe': no bundled airframe named 'octo_q'"),
+    ("airframe:=/nope/frame.yaml",
+     "navigation: error: parameter 'airframe': cannot read airframe /nope/frame.yaml: No such file or directory"),
 ]
 
 
