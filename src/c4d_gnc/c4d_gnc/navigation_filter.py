@@ -182,7 +182,7 @@ class NavigationFilter:
             self._accel_sum[:], self._accel_n = 0.0, 0
             if self.on_ground:
                 ekf.update_zero_velocity()
-            elif self.station_keeping and self.initialised and self.horizontal.fusing(t) == NONE:
+            elif self.station_keeping and self.initialised and not ekf.horizontal_aiding:
                 ekf.update_unaided_velocity()  # dead reckoning while held still: bound the drift (EKF docstring)
         omega = np.asarray(gyro) - ekf.bg
         self.alpha = 0.8 * self.alpha + 0.2 * (omega - self.omega) / dt
